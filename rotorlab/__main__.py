@@ -1,0 +1,5 @@
+import sys
+
+from rotorlab.cli import main
+
+sys.exit(main())
