@@ -1,0 +1,36 @@
+"""Frame conventions between MuJoCo (body x forward, y left, z up; world z up) and the flight software
+(aerospace angles: positive roll = right side down, positive pitch = nose up, positive yaw = nose right;
+body rates p, q, r about forward, right and down axes), all in degrees.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+RAD2DEG = 180.0 / math.pi
+
+# FRD rate = FLU_TO_FRD * FLU rate (x kept, y and z flipped)
+FLU_TO_FRD = np.array([1.0, -1.0, -1.0])
+AXES = ("roll", "pitch", "yaw")
+
+
+def euler_deg_from_quat(quat_wxyz) -> np.ndarray:
+    """Aerospace (roll, pitch, yaw) in degrees of a body (FLU) orientation in the z-up world."""
+    w, x, y, z = quat_wxyz
+    # rows of the rotation matrix that the angles need
+    r00 = 1 - 2 * (y * y + z * z)
+    r10 = 2 * (x * y + w * z)
+    r20 = 2 * (x * z - w * y)
+    r21 = 2 * (y * z + w * x)
+    r22 = 1 - 2 * (x * x + y * y)
+    pitch = math.asin(max(-1.0, min(1.0, r20)))  # forward axis rising = nose up
+    roll = math.atan2(r21, r22)  # left axis rising = right side down
+    yaw = -math.atan2(r10, r00)  # heading turning clockwise seen from above = nose right
+    return np.array([roll, pitch, yaw]) * RAD2DEG
+
+
+def rates_dps_from_flu(omega_flu_rad_s) -> np.ndarray:
+    """Body rates (p, q, r) in deg/s from a FLU angular velocity in rad/s."""
+    return FLU_TO_FRD * np.asarray(omega_flu_rad_s) * RAD2DEG

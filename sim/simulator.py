@@ -1,0 +1,233 @@
+"""The simulator: MuJoCo physics at 1 kHz under flight software at 50 Hz.
+
+Between two control ticks the physics steps are batched in one ``mj_step(m, d, nstep)`` call; the rotor
+commands are held (zero-order hold, like the real servo/ESC interface) and MuJoCo's actuator history buffers
+realise the transport delay. Sensors are sampled at the tick, as the flight computer samples its IMU.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from rotorlab.errors import RotorlabError
+from rotorlab.scenes import PREFIX, Scene, build_scene
+from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quat
+
+CONTROL_DT_S = 0.02
+FREE_FLIGHT_TILT_LIMIT_DEG = 80.0
+FLOOR_CLEARANCE_M = 0.05
+
+
+class Diverged(RotorlabError):
+    """The run left the physically meaningful region (NaN, MuJoCo warning, rig stop, crash)."""
+
+
+class Simulator:
+    """One vehicle in one scene.
+
+    Parameters
+    ----------
+    scene : str or Scene
+        ``pitch-rig``, ``roll-rig``, ``thrust-stand`` or ``free-flight`` (or an already built Scene).
+    vehicle : str, path or VehicleSpec
+    seed : int
+        Seeds the IMU noise and bias and every disturbance (``numpy.random.Generator``).
+    control_dt_s : float
+        Flight-software period; must be a whole number of physics steps.
+    sensor_noise : bool
+        IMU noise and bias on or off.
+    disturbances : sequence
+        Objects following :class:`rotorlab.sim.disturbances.base.Disturbance`.
+    """
+
+    def __init__(self, scene="pitch-rig", vehicle="anteos-p2a2", *, seed: int = 0, control_dt_s: float = CONTROL_DT_S,
+                 sensor_noise: bool = True, disturbances=()):
+        self.disturbances = list(disturbances)
+        if isinstance(scene, Scene):
+            self.scene = scene
+        else:
+            for dist in self.disturbances:
+                dist.check_scene(scene)
+            edits = [d for d in self.disturbances if hasattr(d, "edit")]
+
+            def edit(spec, name, v):
+                return any([bool(d.edit(spec, name, v)) for d in edits])
+
+            self.scene = build_scene(scene, vehicle, edit=edit if edits else None)
+        self.vehicle = self.scene.vehicle
+        self.model = self.scene.model
+        self.data = mujoco.MjData(self.model)
+        n = control_dt_s / self.model.opt.timestep
+        if abs(n - round(n)) > 1e-9 or round(n) < 1:
+            raise ValueError(f"control period {control_dt_s} s is not a whole number of physics steps "
+                             f"({self.model.opt.timestep} s)")
+        self.n_substeps = int(round(n))
+        self.control_dt_s = float(control_dt_s)
+        self.sensor_noise = sensor_noise
+        self.seed = seed
+        m = self.model
+        self._thrust = self.scene.thrust_actuators
+        self._inflow, self._hx, self._hy = (self.scene.aero_actuators[k] for k in ("inflow", "hx", "hy"))
+        self._mixer = self.vehicle.mixer()[: len(self._thrust)]
+        self._limit = self.vehicle.command_limit_pct
+        self._airframe = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{PREFIX}airframe")
+        self._key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "hover")
+        self._sens = {}
+        for name in ("gyro", "accel", "imu_quat", "load_force", "load_torque"):
+            for full in (f"{PREFIX}{name}", name):
+                sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, full)
+                if sid >= 0:
+                    adr, dim = m.sensor_adr[sid], m.sensor_dim[sid]
+                    self._sens[name] = slice(adr, adr + dim)
+                    break
+        self._bearing = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
+        self._mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
+        self.wind_world = np.zeros(3)
+        self.reset(seed)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, seed: int | None = None) -> None:
+        """Back to the hover keyframe with settled actuator filters and delay lines; re-seeds noise."""
+        if seed is not None:
+            self.seed = seed
+        m, d = self.model, self.data
+        mujoco.mj_resetDataKeyframe(m, d, self._key)
+        # history buffers start at zero (MuJoCo's default); fill them with the trim so the delay line
+        # holds hover thrust, as on a vehicle that has been hovering
+        for i in range(m.nu):
+            if m.actuator_history[i, 0] > 0:
+                vals = np.full((m.actuator_history[i, 0], 1), d.ctrl[i])
+                mujoco.mj_initCtrlHistory(m, d, i, None, vals)
+        self.rng = np.random.default_rng(self.seed)
+        imu = self.vehicle.imu
+        self._gyro_bias = self.rng.normal(0.0, imu.gyro_bias_dps, 3) if self.sensor_noise else np.zeros(3)
+        self.commands_pct = np.zeros(4)
+        self.wind_world[:] = 0.0
+        for dist in self.disturbances:
+            dist.reset(self, np.random.default_rng([self.seed, _stable_hash(dist.name)]))
+        mujoco.mj_forward(m, d)
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    # ------------------------------------------------------------------ actuation
+    def set_commands(self, commands_pct) -> np.ndarray:
+        """Axis commands [collective, roll, pitch, yaw] in % (collective 0 = hover trim), saturated at the
+        vehicle's command limit; returns the applied (saturated) commands."""
+        c = np.clip(np.asarray(commands_pct, dtype=float), -self._limit, self._limit)
+        self.commands_pct = c
+        rotor = self._mixer @ c
+        self.data.ctrl[self._thrust] = self.vehicle.command_to_ctrl(rotor)
+        return c
+
+    def set_rotor_commands(self, rotor_pct) -> None:
+        """Per-rotor commands in % (0 = trim), bypassing the mixer (thrust-stand tests)."""
+        self.data.ctrl[self._thrust] = self.vehicle.command_to_ctrl(np.asarray(rotor_pct, dtype=float))
+
+    def _apply_wind(self) -> None:
+        w = self.wind_world
+        self.model.opt.wind[:] = w
+        if not w.any() and not self.data.ctrl[self._inflow].any():
+            return
+        # rotor sites are aligned with the airframe: wind in body axes drives the inflow and H-force actuators
+        R = self.data.xmat[self._airframe].reshape(3, 3) if self._airframe >= 0 else np.eye(3)
+        wb = R.T @ w
+        self.data.ctrl[self._hx] = wb[0]
+        self.data.ctrl[self._hy] = wb[1]
+        self.data.ctrl[self._inflow] = wb[2]
+
+    # ------------------------------------------------------------------ stepping
+    def tick(self) -> None:
+        """Advance one control period: disturbances update at the tick, then the batched physics steps."""
+        d = self.data
+        if self.disturbances:
+            d.xfrc_applied[:] = 0.0
+            self.wind_world[:] = 0.0
+            t = self.time
+            for dist in self.disturbances:
+                dist.update(self, t)
+        self._apply_wind()
+        mujoco.mj_step(self.model, d, nstep=self.n_substeps)
+
+    def check(self) -> str | None:
+        """Why the run must stop, or None: NaN, a MuJoCo warning, the rig's stops, a crash or a flip."""
+        d, m = self.data, self.model
+        if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
+            return f"state became NaN/inf at t = {self.time:.3f} s"
+        for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS):
+            if d.warning[w].number > 0:
+                return f"MuJoCo warning {w.name} at t = {self.time:.3f} s (the simulation diverged)"
+        if self._bearing >= 0:
+            ang = math.degrees(d.qpos[m.jnt_qposadr[self._bearing]] + d.qpos[m.jnt_qposadr[self._mount]])
+            if abs(ang) >= self.scene.stop_deg - 0.5:
+                return (f"{self.scene.rig_axis} angle {ang:+.1f} deg reached the rig stop "
+                        f"(+-{self.scene.stop_deg:g} deg) at t = {self.time:.3f} s")
+        elif self.scene.name == "free-flight":
+            roll, pitch, _ = self.true_attitude_deg()
+            tilt = math.degrees(math.acos(max(-1.0, min(1.0, math.cos(math.radians(roll)) * math.cos(math.radians(pitch))))))
+            if tilt > FREE_FLIGHT_TILT_LIMIT_DEG:
+                return f"tilt {tilt:.0f} deg beyond the divergence limit {FREE_FLIGHT_TILT_LIMIT_DEG:g} deg at t = {self.time:.3f} s"
+            if d.xpos[self._airframe, 2] < FLOOR_CLEARANCE_M + self.vehicle.body_size_m[2]:
+                return f"the vehicle hit the floor at t = {self.time:.3f} s"
+        return None
+
+    # ------------------------------------------------------------------ sensing
+    def measure(self) -> dict:
+        """IMU readings at this tick in flight-software units, with seeded noise and bias when enabled:
+        ``phi, theta, psi`` (deg), ``p, q, r`` (deg/s), ``ax, ay, az`` (m/s^2, body FRD), and for outer loops
+        ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s, NED) from the position sensor (truth plus noise-free)."""
+        sd = self.data.sensordata
+        gyro = sd[self._sens["gyro"]] * RAD2DEG
+        rates = np.array([gyro[0], -gyro[1], -gyro[2]])
+        att = euler_deg_from_quat(sd[self._sens["imu_quat"]])
+        acc = sd[self._sens["accel"]]
+        accel = np.array([acc[0], -acc[1], -acc[2]])
+        if self.sensor_noise:
+            imu = self.vehicle.imu
+            rng = self.rng
+            rates = rates + self._gyro_bias + rng.normal(0.0, imu.gyro_noise_dps, 3)
+            att = att + rng.normal(0.0, imu.angle_noise_deg, 3)
+            accel = accel + rng.normal(0.0, imu.accel_noise_mps2, 3)
+        out = {"phi": att[0], "theta": att[1], "psi": att[2], "p": rates[0], "q": rates[1], "r": rates[2],
+               "ax": accel[0], "ay": accel[1], "az": accel[2]}
+        if self._airframe >= 0:
+            pos = self.data.xpos[self._airframe]
+            vel = self._airframe_velocity()
+            out.update(x=pos[0], y=-pos[1], z=-pos[2], vx=vel[0], vy=-vel[1], vz=-vel[2])
+        return out
+
+    def _airframe_velocity(self) -> np.ndarray:
+        v = np.zeros(6)
+        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._airframe, v, 0)
+        return v[3:]
+
+    def true_attitude_deg(self) -> np.ndarray:
+        """Airframe (not IMU) roll, pitch, yaw in degrees."""
+        return euler_deg_from_quat(self.data.xquat[self._airframe])
+
+    def true_rates_dps(self) -> np.ndarray:
+        v = np.zeros(6)
+        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._airframe, v, 1)
+        return np.array([v[0], -v[1], -v[2]]) * RAD2DEG
+
+    def load_cell(self) -> tuple[np.ndarray, np.ndarray]:
+        """Thrust-stand force (N) and torque (N m) in the load-cell frame."""
+        sd = self.data.sensordata
+        return sd[self._sens["load_force"]].copy(), sd[self._sens["load_torque"]].copy()
+
+    def rotor_speed_rad_s(self) -> np.ndarray:
+        """Tachometer: rotor speed of each rotor (variable RPM: from the motor state; variable pitch: fixed)."""
+        v = self.vehicle
+        if v.kind == "variable-rpm":
+            act = self.data.act[self.model.actuator_actadr[self._thrust]]
+            return np.sqrt(np.maximum(act, 0.0))
+        return np.full(len(self._thrust), v.rotor.rotor_speed_rad_s)
+
+
+def _stable_hash(name: str) -> int:
+    # Python's hash() is salted per process; seeds must not be
+    return int.from_bytes(name.encode()[:8].ljust(8, b"\0"), "little")

@@ -1,0 +1,146 @@
+"""MJCF of a vehicle, generated with ``mujoco.MjSpec`` from its :class:`VehicleSpec`.
+
+The vehicle model carries no joint to the world: the scene decides (free joint, rig hinge, welded to a
+thrust stand). Everything that can be native MuJoCo is:
+
+* thrust per rotor: a site actuator at ``rotor{i}`` whose gear is the thrust axis plus the reaction
+  torque (``-spin * Q/T``); ``filterexact`` dynamics is the servo/motor lag and the actuator history
+  buffer (``nsample``/``delay``) the transport delay;
+* axial-inflow damping: a second site actuator on the same axis, ``force = k_w (ctrl - v_axial)``
+  where ctrl is the axial wind at the rotor, so thrust depends on the *air-relative* climb speed;
+* flapping / H-force: two in-plane site actuators per rotor, ``force = k_h (ctrl - v_inplane)``, whose
+  gear adds the flapping moment ``flap_arm * H`` (forward airspeed tilts the disc back: nose-up);
+* the IMU on its own small body, joined to the airframe by three spring-damper hinges (the published
+  IMU mass-spring-damper J, k, c), carrying the gyro and accelerometer;
+* fuselage drag from MuJoCo's ellipsoid fluid model, driven by ``opt.wind`` (set by the wind disturbances).
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from .spec import VehicleSpec
+
+ROTOR_ACTUATORS = ("thrust", "inflow", "hx", "hy")
+
+
+def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
+    """Return the vehicle as an ``MjSpec`` whose root body is ``airframe`` (to be attached by a scene)."""
+    s = mujoco.MjSpec()
+    s.modelname = v.name
+    s.compiler.degree = False
+
+    # Default classes, Menagerie style: visual geoms never collide, rotor actuators share their settings.
+    main = s.default
+    main.geom.rgba = [0.25, 0.25, 0.28, 1]
+    visual = s.add_default("visual", main)
+    visual.geom.contype = 0
+    visual.geom.conaffinity = 0
+    visual.geom.group = 2
+    visual.geom.mass = 0
+    visual.geom.density = 0
+    collision = s.add_default("collision", main)
+    collision.geom.group = 3
+    collision.geom.mass = 0
+    collision.geom.density = 0
+
+    frame = s.worldbody.add_body(name="airframe")
+    frame.mass = v.mass_kg - v.imu.mass_kg
+    frame.inertia = list(v.inertia_kgm2)
+    frame.ipos = [0, 0, 0]
+    frame.explicitinertial = True
+
+    bx, by, bz = v.body_size_m
+    fus = frame.add_geom(name="fuselage", default=collision, type=mujoco.mjtGeom.mjGEOM_BOX, size=[bx, by, bz],
+                         pos=list(v.cp_offset_m), rgba=[0.2, 0.2, 0.22, 1])
+    # Drag acts at the fuselage centre, which is the centre of pressure: the ellipsoid fluid model is MuJoCo's
+    # native quadratic drag with the wind of opt.wind.
+    fus.fluid_ellipsoid = 1
+    pos = v.rotor_positions()
+    R = v.rotor.radius_m
+    for i, p in enumerate(pos, start=1):
+        ang = math.atan2(p[1], p[0])
+        arm_len = float(np.hypot(p[0], p[1]))
+        frame.add_geom(name=f"arm{i}", default=visual, type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[0.012, arm_len / 2, 0],
+                       pos=[p[0] / 2, p[1] / 2, p[2] / 2], euler=[0, math.pi / 2, ang], rgba=[0.15, 0.15, 0.15, 1])
+        frame.add_geom(name=f"disc{i}", default=visual, type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[R, 0.004, 0],
+                       pos=list(p), rgba=[0.6, 0.7, 0.9, 0.35] if v.rotor.spin[i - 1] > 0 else [0.9, 0.6, 0.5, 0.35])
+        frame.add_site(name=f"rotor{i}", pos=list(p), size=[0.01, 0, 0])
+        # landing feet below each arm tip, the only airframe collision geoms besides the fuselage
+        frame.add_geom(name=f"foot{i}", default=collision, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.02, 0, 0],
+                       pos=[0.6 * p[0], 0.6 * p[1], -bz - 0.15])
+    frame.add_site(name="arm_front_tip", pos=[pos[0, 0] + R * 0.2, 0, pos[0, 2]], size=[0.01, 0, 0])
+    frame.add_site(name="cg", pos=[0, 0, 0], size=[0.005, 0, 0])
+
+    imu = v.imu
+    ib = frame.add_body(name="imu", pos=list(imu.offset_m))
+    ib.mass = imu.mass_kg
+    ib.ipos = [0, 0, 0]
+    J = imu.inertia_kgm2
+    ib.inertia = [J, J, J]
+    ib.explicitinertial = True
+    # Three hinges rather than a ball joint: MuJoCo springs and dampers act per hinge, which gives the
+    # published per-axis mass-spring-damper (J, k, c) exactly.
+    for ax_name, axis in (("x", [1, 0, 0]), ("y", [0, 1, 0]), ("z", [0, 0, 1])):
+        ib.add_joint(name=f"imu_mount_{ax_name}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
+                     stiffness=imu.mount_stiffness, damping=imu.mount_damping)
+    ib.add_geom(name="imu_board", default=visual, type=mujoco.mjtGeom.mjGEOM_BOX,
+                size=[imu.size_m / 2] * 3, rgba=[0.1, 0.6, 0.2, 1])
+    ib.add_site(name="imu", size=[0.005, 0, 0])
+
+    s.add_sensor(name="gyro", type=mujoco.mjtSensor.mjSENS_GYRO, objtype=mujoco.mjtObj.mjOBJ_SITE, objname="imu")
+    s.add_sensor(name="accel", type=mujoco.mjtSensor.mjSENS_ACCELEROMETER, objtype=mujoco.mjtObj.mjOBJ_SITE, objname="imu")
+    s.add_sensor(name="imu_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT, objtype=mujoco.mjtObj.mjOBJ_SITE, objname="imu")
+
+    for i in range(1, v.n_rotors + 1):
+        add_rotor(s, v, i, physics_dt_s)
+    return s
+
+
+def _aero_default(s: mujoco.MjSpec):
+    aero = s.find_default("aero")
+    if aero is None:
+        aero = s.add_default("aero", s.default)
+        aero.actuator.trntype = mujoco.mjtTrn.mjTRN_SITE
+        aero.actuator.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        aero.actuator.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        aero.actuator.ctrllimited = False
+        aero.actuator.group = 4
+    return aero
+
+
+def add_rotor(s: mujoco.MjSpec, v: VehicleSpec, i: int, physics_dt_s: float, prefix: str = "") -> None:
+    """Add the four actuators of rotor ``i`` (1-based) at site ``{prefix}rotor{i}``: thrust, inflow, hx, hy."""
+    r = v.rotor
+    aero = _aero_default(s)
+    sp = r.spin[i - 1]
+    gear_axial = [0, 0, 1, 0, 0, -sp * r.torque_to_thrust_m]
+    a = s.add_actuator(name=f"{prefix}thrust{i}", target=f"{prefix}rotor{i}", trntype=mujoco.mjtTrn.mjTRN_SITE)
+    a.gear = gear_axial
+    a.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
+    a.dynprm[0] = r.lag_s[i - 1]
+    a.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+    a.gainprm[0] = v.thrust_gain()
+    a.biastype = mujoco.mjtBias.mjBIAS_NONE
+    a.ctrllimited = False
+    nsample = int(round(r.delay_s[i - 1] / physics_dt_s))
+    if nsample > 0:
+        a.nsample = nsample + 1
+        a.delay = nsample * physics_dt_s
+    kw = r.axial_damping_N_per_mps
+    a = s.add_actuator(name=f"{prefix}inflow{i}", target=f"{prefix}rotor{i}", default=aero)
+    a.gear = gear_axial
+    a.gainprm[0] = kw
+    a.biasprm[2] = -kw
+    kh, g = r.hforce_N_per_mps, r.flap_arm_m
+    a = s.add_actuator(name=f"{prefix}hx{i}", target=f"{prefix}rotor{i}", default=aero)
+    a.gear = [1, 0, 0, 0, g, 0]
+    a.gainprm[0] = kh
+    a.biasprm[2] = -kh
+    a = s.add_actuator(name=f"{prefix}hy{i}", target=f"{prefix}rotor{i}", default=aero)
+    a.gear = [0, 1, 0, -g, 0, 0]
+    a.gainprm[0] = kh
+    a.biasprm[2] = -kh

@@ -1,0 +1,354 @@
+"""Vehicle specification: the TOML file of physical parameters, read and validated.
+
+A vehicle TOML is the single source of truth for every physical number of a twin; the MJCF is generated
+from it (``rotorlab.vehicles.build``) and nothing else in rotorlab restates these numbers.
+
+Frames: MuJoCo's body frame is x forward, y left, z up (FLU). Flight-software angles follow the
+aerospace convention (positive pitch = nose up, positive roll = right side down, positive yaw = nose
+right), see ``rotorlab.sim.frames``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from rotorlab.errors import ConfigError
+
+RHO_AIR = 1.225  # kg/m^3, ISA sea level
+G0 = 9.81  # m/s^2
+
+
+class _Reader:
+    """Typed access to a TOML table that reports the file and dotted field on every error."""
+
+    def __init__(self, src, data: dict, prefix: str = ""):
+        self.src, self.data, self.prefix = src, data, prefix
+
+    def _field(self, key):
+        return f"{self.prefix}{key}"
+
+    def table(self, key, required=True) -> "_Reader | None":
+        if key not in self.data:
+            if required:
+                raise ConfigError("missing table", file=self.src, field=self._field(key), expected=f"a [{self._field(key)}] table")
+            return None
+        val = self.data[key]
+        if not isinstance(val, dict):
+            raise ConfigError(file=self.src, field=self._field(key), expected="a table", got=val)
+        return _Reader(self.src, val, f"{self._field(key)}.")
+
+    def num(self, key, default=None, *, lo=None, hi=None, lo_open=False) -> float:
+        if key not in self.data:
+            if default is None:
+                raise ConfigError("missing field", file=self.src, field=self._field(key), expected="a number")
+            return float(default)
+        v = self.data[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ConfigError(file=self.src, field=self._field(key), expected="a finite number", got=v)
+        if lo is not None and (v < lo or (lo_open and v == lo)):
+            raise ConfigError(file=self.src, field=self._field(key), expected=f"a value {'>' if lo_open else '>='} {lo}", got=v)
+        if hi is not None and v > hi:
+            raise ConfigError(file=self.src, field=self._field(key), expected=f"a value <= {hi}", got=v)
+        return float(v)
+
+    def vec(self, key, n, default=None, *, lo=None, lo_open=False) -> tuple:
+        if key not in self.data:
+            if default is None:
+                raise ConfigError("missing field", file=self.src, field=self._field(key), expected=f"a list of {n} numbers")
+            return tuple(float(x) for x in default)
+        v = self.data[key]
+        if not isinstance(v, list) or len(v) != n or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+            raise ConfigError(file=self.src, field=self._field(key), expected=f"a list of {n} numbers", got=v)
+        for x in v:
+            if lo is not None and (x < lo or (lo_open and x == lo)):
+                raise ConfigError(file=self.src, field=self._field(key),
+                                  expected=f"every value {'>' if lo_open else '>='} {lo}", got=v)
+        return tuple(float(x) for x in v)
+
+    def str(self, key, default=None, choices=None) -> str:
+        if key not in self.data:
+            if default is None:
+                raise ConfigError("missing field", file=self.src, field=self._field(key), expected="a string")
+            return default
+        v = self.data[key]
+        if not isinstance(v, str) or (choices and v not in choices):
+            raise ConfigError(file=self.src, field=self._field(key),
+                              expected=f"one of {list(choices)}" if choices else "a string", got=v)
+        return v
+
+
+@dataclasses.dataclass(frozen=True)
+class RotorSpec:
+    radius_m: float
+    spin: tuple  # +1: counter-clockwise seen from above (reaction torque on the body is clockwise)
+    torque_to_thrust_m: float  # rotor drag torque per unit thrust, Q/T
+    axial_damping_N_per_mps: float  # dT/dw: thrust lost per m/s of axial (climb) airspeed
+    hforce_N_per_mps: float  # in-plane H-force per m/s of in-plane airspeed (flapping)
+    flap_arm_m: float  # flapping moment per unit H-force (tilted thrust + hub stiffness)
+    lag_s: tuple  # per rotor: servo (variable pitch) or motor (variable RPM) first-order time constant, s
+    delay_s: tuple  # per rotor: transport delay from flight-software command to rotor, s
+    # variable pitch
+    thrust_slope_N_per_rad: float = 0.0
+    blade_pitch_per_pct_rad: float = 0.0
+    rotor_speed_rad_s: float = 0.0
+    # variable RPM (TUHH: T = C_T rho A R^2 Omega^2, Omega(b) = a0 b^a1 + a2)
+    thrust_coefficient: float = 0.0
+    torque_coefficient: float = 0.0
+    speed_map: tuple = (0.0, 1.0, 0.0)
+    hover_command: float = 0.0
+
+    @property
+    def area_m2(self) -> float:
+        return math.pi * self.radius_m**2
+
+    @property
+    def k_thrust(self) -> float:
+        """Variable RPM: thrust per Omega^2, N/(rad/s)^2 (TUHH eq. 4: T = C_T rho A R^2 Omega^2)."""
+        return self.thrust_coefficient * RHO_AIR * self.area_m2 * self.radius_m**2
+
+    def speed(self, b):
+        """Variable RPM: rotor speed (rad/s) for command b in [0, 1] (TUHH eq. 3)."""
+        a0, a1, a2 = self.speed_map
+        return a0 * np.power(np.clip(b, 0.0, 1.0), a1) + a2
+
+    def dspeed_db(self, b):
+        a0, a1, _ = self.speed_map
+        return a0 * a1 * np.power(b, a1 - 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class ImuSpec:
+    mass_kg: float
+    size_m: float
+    offset_m: tuple
+    mount_frequency_hz: float
+    mount_damping_ratio: float
+    gyro_noise_dps: float
+    gyro_bias_dps: float
+    angle_noise_deg: float
+    accel_noise_mps2: float
+
+    @property
+    def inertia_kgm2(self) -> float:
+        # a uniform cube of side size_m
+        return self.mass_kg * self.size_m**2 / 6.0
+
+    @property
+    def mount_stiffness(self) -> float:
+        return self.inertia_kgm2 * (2 * math.pi * self.mount_frequency_hz) ** 2
+
+    @property
+    def mount_damping(self) -> float:
+        return 2 * self.mount_damping_ratio * self.inertia_kgm2 * 2 * math.pi * self.mount_frequency_hz
+
+
+@dataclasses.dataclass(frozen=True)
+class RigSpec:
+    """One-axis gimbal test-bed: light ring on a damped bearing, airframe on an elastic mount on the ring."""
+
+    ring_inertia_kgm2: float
+    bearing_damping_Nms_per_rad: float
+    bearing_friction_Nm: float
+    mount_stiffness_Nm_per_rad: float
+    mount_damping_Nms_per_rad: float
+    stop_deg: float
+
+
+@dataclasses.dataclass(frozen=True)
+class PublishedModel:
+    """A published identified model of one channel, for calibration tests and documentation."""
+
+    num: tuple
+    den: tuple
+    delay_s: float
+    input: str
+    output: str
+    source: str
+
+
+@dataclasses.dataclass(frozen=True)
+class VehicleSpec:
+    name: str
+    description: str
+    kind: str  # "variable-pitch" | "variable-rpm"
+    path: Path
+    mass_kg: float
+    inertia_kgm2: tuple  # about the CG, body axes
+    arm_m: float
+    rotor_height_m: float
+    body_size_m: tuple  # fuselage box half-sizes, for geometry and drag
+    cp_offset_m: tuple  # centre of pressure relative to the CG (drag moment arm)
+    rotor: RotorSpec
+    imu: ImuSpec
+    rigs: dict  # axis -> RigSpec
+    command_limit_pct: float
+    published: dict  # name -> PublishedModel
+    sources: dict
+
+    @property
+    def n_rotors(self) -> int:
+        return len(self.rotor.spin)
+
+    def rotor_positions(self) -> np.ndarray:
+        """Rotor hub positions (n, 3) in the body frame (FLU), plus layout: 1 front, 2 right, 3 rear, 4 left."""
+        l, h = self.arm_m, self.rotor_height_m
+        return np.array([[l, 0, h], [0, -l, h], [-l, 0, h], [0, l, h]], dtype=float)
+
+    @property
+    def hover_thrust_N(self) -> float:
+        return self.mass_kg * G0 / self.n_rotors
+
+    def mixer(self) -> np.ndarray:
+        """Per-rotor command (%) = M @ [collective, roll, pitch, yaw] (%), aerospace sign convention.
+
+        Pitch: front +u/2, rear -u/2, so ``u`` is the command difference between opposite rotors (the
+        published definition of u_lon). Roll (right side down): left +u/2, right -u/2. Yaw (nose right):
+        counter-clockwise rotors +u/2, whose clockwise reaction torque turns the nose right.
+        """
+        pos = self.rotor_positions()
+        spin = np.asarray(self.rotor.spin, dtype=float)
+        M = np.zeros((self.n_rotors, 4))
+        M[:, 0] = 1.0
+        M[:, 1] = np.sign(np.round(pos[:, 1], 9)) * 0.5
+        M[:, 2] = np.sign(np.round(pos[:, 0], 9)) * 0.5
+        M[:, 3] = spin * 0.5
+        return M
+
+    # -- rotor command (%) -> MuJoCo ctrl and its derivative, the "ESC / servo" of the twin --
+    def hover_ctrl(self) -> float:
+        r = self.rotor
+        if self.kind == "variable-pitch":
+            return self.hover_thrust_N / r.thrust_slope_N_per_rad  # blade pitch, rad (zero-lift at 0)
+        return float(r.speed(r.hover_command)) ** 2  # Omega^2, (rad/s)^2
+
+    def command_to_ctrl(self, cmd_pct):
+        """Rotor commands in % (0 = hover trim) to actuator ctrl (blade pitch in rad, or Omega^2)."""
+        r = self.rotor
+        cmd = np.asarray(cmd_pct, dtype=float)
+        if self.kind == "variable-pitch":
+            return self.hover_ctrl() + cmd * r.blade_pitch_per_pct_rad
+        b = r.hover_command + cmd / 100.0
+        return r.speed(b) ** 2
+
+    def dctrl_dcommand(self) -> float:
+        """d ctrl / d command at hover trim (per %)."""
+        r = self.rotor
+        if self.kind == "variable-pitch":
+            return r.blade_pitch_per_pct_rad
+        b = r.hover_command
+        return 2.0 * float(r.speed(b)) * float(r.dspeed_db(b)) / 100.0
+
+    def thrust_gain(self) -> float:
+        """Actuator gain: N per unit of ctrl."""
+        r = self.rotor
+        return r.thrust_slope_N_per_rad if self.kind == "variable-pitch" else r.k_thrust
+
+
+def _per_rotor(r: _Reader, key: str, lo_open: bool) -> tuple:
+    """A number shared by the four rotors, or a list of four (rotor 1 front, 2 right, 3 rear, 4 left)."""
+    if isinstance(r.data.get(key), list):
+        return r.vec(key, 4, lo=0.0, lo_open=lo_open)
+    return (r.num(key, lo=0.0, lo_open=lo_open),) * 4
+
+
+def _published(src, rd: _Reader | None) -> dict:
+    out = {}
+    if rd is None:
+        return out
+    for key in rd.data:
+        t = rd.table(key)
+        num, den = t.data.get("num"), t.data.get("den")
+        for fld, v in (("num", num), ("den", den)):
+            if not isinstance(v, list) or not v or not all(isinstance(x, (int, float)) for x in v):
+                raise ConfigError(file=src, field=f"published.{key}.{fld}", expected="a non-empty list of numbers", got=v)
+        out[key] = PublishedModel(tuple(map(float, num)), tuple(map(float, den)), t.num("delay_s", lo=0.0),
+                                  t.str("input"), t.str("output"), t.str("source"))
+    return out
+
+
+def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> VehicleSpec:
+    rd = _Reader(src, data)
+    v = rd.table("vehicle")
+    kind = v.str("kind", choices=("variable-pitch", "variable-rpm"))
+    a = rd.table("airframe")
+    r = rd.table("rotor")
+    spin = r.vec("spin", 4)
+    if any(s not in (-1.0, 1.0) for s in spin):
+        raise ConfigError(file=src, field="rotor.spin", expected="four values, each +1 or -1", got=list(spin))
+    common = dict(
+        radius_m=r.num("radius_m", lo=0.0, lo_open=True),
+        spin=spin,
+        torque_to_thrust_m=r.num("torque_to_thrust_m", lo=0.0),
+        axial_damping_N_per_mps=r.num("axial_damping_N_per_mps", lo=0.0),
+        hforce_N_per_mps=r.num("hforce_N_per_mps", lo=0.0),
+        flap_arm_m=r.num("flap_arm_m", lo=0.0),
+        lag_s=_per_rotor(r, "lag_s", lo_open=True),
+        delay_s=_per_rotor(r, "delay_s", lo_open=False),
+    )
+    if kind == "variable-pitch":
+        rotor = RotorSpec(**common, thrust_slope_N_per_rad=r.num("thrust_slope_N_per_rad", lo=0.0, lo_open=True),
+                          blade_pitch_per_pct_rad=r.num("blade_pitch_per_pct_rad", lo=0.0, lo_open=True),
+                          rotor_speed_rad_s=r.num("rotor_speed_rad_s", lo=0.0, lo_open=True))
+    else:
+        rotor = RotorSpec(**common, thrust_coefficient=r.num("thrust_coefficient", lo=0.0, lo_open=True),
+                          torque_coefficient=r.num("torque_coefficient", lo=0.0, lo_open=True),
+                          speed_map=r.vec("speed_map", 3),
+                          hover_command=r.num("hover_command", lo=0.0, lo_open=True, hi=1.0))
+    if physics_dt_s:
+        for d in rotor.delay_s:
+            k = d / physics_dt_s
+            if abs(k - round(k)) > 1e-6:
+                raise ConfigError("the transport delay is realised by MuJoCo's actuator history buffer",
+                                  file=src, field="rotor.delay_s",
+                                  expected=f"a multiple of the physics step {physics_dt_s} s", got=d)
+    i = rd.table("imu")
+    imu = ImuSpec(
+        mass_kg=i.num("mass_kg", lo=0.0, lo_open=True), size_m=i.num("size_m", lo=0.0, lo_open=True),
+        offset_m=i.vec("offset_m", 3), mount_frequency_hz=i.num("mount_frequency_hz", lo=0.0, lo_open=True),
+        mount_damping_ratio=i.num("mount_damping_ratio", lo=0.0),
+        gyro_noise_dps=i.num("gyro_noise_dps", lo=0.0), gyro_bias_dps=i.num("gyro_bias_dps", lo=0.0),
+        angle_noise_deg=i.num("angle_noise_deg", lo=0.0), accel_noise_mps2=i.num("accel_noise_mps2", lo=0.0),
+    )
+    rigs = {}
+    rg = rd.table("rig", required=False)
+    if rg is not None:
+        for axis in rg.data:
+            if axis not in ("pitch", "roll"):
+                raise ConfigError(file=src, field=f"rig.{axis}", expected="'pitch' or 'roll'", got=axis)
+            t = rg.table(axis)
+            rigs[axis] = RigSpec(
+                ring_inertia_kgm2=t.num("ring_inertia_kgm2", lo=0.0, lo_open=True),
+                bearing_damping_Nms_per_rad=t.num("bearing_damping_Nms_per_rad", lo=0.0),
+                bearing_friction_Nm=t.num("bearing_friction_Nm", 0.0, lo=0.0),
+                mount_stiffness_Nm_per_rad=t.num("mount_stiffness_Nm_per_rad", lo=0.0, lo_open=True),
+                mount_damping_Nms_per_rad=t.num("mount_damping_Nms_per_rad", lo=0.0),
+                stop_deg=t.num("stop_deg", lo=0.0, lo_open=True, hi=90.0),
+            )
+    srcs = rd.data.get("sources", {})
+    return VehicleSpec(
+        name=v.str("name"), description=v.str("description", ""), kind=kind, path=Path(src),
+        mass_kg=a.num("mass_kg", lo=0.0, lo_open=True), inertia_kgm2=a.vec("inertia_kgm2", 3, lo=0.0, lo_open=True),
+        arm_m=a.num("arm_m", lo=0.0, lo_open=True), rotor_height_m=a.num("rotor_height_m", 0.0),
+        body_size_m=a.vec("body_size_m", 3, lo=0.0, lo_open=True), cp_offset_m=a.vec("cp_offset_m", 3, (0, 0, 0)),
+        rotor=rotor, imu=imu, rigs=rigs,
+        command_limit_pct=rd.table("commands").num("limit_pct", lo=0.0, lo_open=True),
+        published=_published(src, rd.table("published", required=False)),
+        sources=dict(srcs) if isinstance(srcs, dict) else {},
+    )
+
+
+def load_vehicle_file(path, physics_dt_s: float | None = None) -> VehicleSpec:
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise ConfigError("vehicle file not found", file=path) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {exc}", file=path) from None
+    return parse_vehicle(data, path, physics_dt_s)
