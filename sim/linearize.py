@@ -14,6 +14,7 @@ import control as ct
 from rotorlab.errors import UnknownNameError
 from rotorlab.scenes import PREFIX, Scene, build_scene
 from rotorlab.sim.frames import RAD2DEG
+from rotorlab.sim.simulator import vehicle_mixer
 
 INPUTS = {"collective": 0, "roll": 1, "pitch": 2, "yaw": 3}
 # sensor channel -> (sensor name, component, scale); FLU -> aerospace sign flips and rad -> deg folded in
@@ -84,7 +85,7 @@ def linearize(scene="pitch-rig", vehicle="anteos-p2a2", input="pitch", output="g
     mujoco.mjd_transitionFD(m, d, eps, True, A, B, C, D)
 
     thrust = sc.thrust_actuators
-    mix = v.mixer()[: len(thrust)] * v.dctrl_dcommand()  # d ctrl / d axis command, per rotor
+    mix = vehicle_mixer(v).matrix[: len(thrust)] * v.dctrl_dcommand()  # d ctrl / d axis command, per rotor
     cols = [INPUTS[i] for i in inputs]
     Wrot = mix[:, cols]  # (n_rotors, n_inputs)
 

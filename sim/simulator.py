@@ -14,11 +14,22 @@ import numpy as np
 
 from rotorlab.errors import RotorlabError
 from rotorlab.scenes import PREFIX, Scene, build_scene
+from rotorlab.sim.control.mixer import Mixer
 from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quat
 
 CONTROL_DT_S = 0.02
 FREE_FLIGHT_TILT_LIMIT_DEG = 80.0
 FLOOR_CLEARANCE_M = 0.05
+
+
+def vehicle_mixer(vehicle) -> Mixer:
+    """The flight software's mixer for a vehicle's rotor layout.
+
+    Rotor commands are absolute % (see ``VehicleSpec.command_to_ctrl``); hover is at
+    ``vehicle.hover_collective_pct``.
+    """
+    pos = vehicle.rotor_positions()[:, :2]
+    return Mixer(pos, vehicle.rotor.spin, kind=vehicle.kind, frame="flu")
 
 
 class Diverged(RotorlabError):
@@ -71,7 +82,7 @@ class Simulator:
         m = self.model
         self._thrust = self.scene.thrust_actuators
         self._inflow, self._hx, self._hy = (self.scene.aero_actuators[k] for k in ("inflow", "hx", "hy"))
-        self._mixer = self.vehicle.mixer()[: len(self._thrust)]
+        self.mixer = vehicle_mixer(self.vehicle)
         self._limit = self.vehicle.command_limit_pct
         self._airframe = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{PREFIX}airframe")
         self._key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "hover")
@@ -104,7 +115,7 @@ class Simulator:
         self.rng = np.random.default_rng(self.seed)
         imu = self.vehicle.imu
         self._gyro_bias = self.rng.normal(0.0, imu.gyro_bias_dps, 3) if self.sensor_noise else np.zeros(3)
-        self.commands_pct = np.zeros(4)
+        self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
         self.wind_world[:] = 0.0
         for dist in self.disturbances:
             dist.reset(self, np.random.default_rng([self.seed, _stable_hash(dist.name)]))
@@ -116,17 +127,18 @@ class Simulator:
 
     # ------------------------------------------------------------------ actuation
     def set_commands(self, commands_pct) -> np.ndarray:
-        """Axis commands [collective, roll, pitch, yaw] in % (collective 0 = hover trim), saturated at the
-        vehicle's command limit; returns the applied (saturated) commands."""
-        c = np.clip(np.asarray(commands_pct, dtype=float), -self._limit, self._limit)
+        """Axis commands [collective, roll, pitch, yaw] in %, roll/pitch/yaw saturated at the vehicle's command
+        limit (the mixer clips each rotor to its range); returns the applied commands."""
+        c = np.asarray(commands_pct, dtype=float).copy()
+        c[1:] = np.clip(c[1:], -self._limit, self._limit)
         self.commands_pct = c
-        rotor = self._mixer @ c
-        self.data.ctrl[self._thrust] = self.vehicle.command_to_ctrl(rotor)
+        self.set_rotor_commands(self.mixer.mix(*c))
         return c
 
     def set_rotor_commands(self, rotor_pct) -> None:
-        """Per-rotor commands in % (0 = trim), bypassing the mixer (thrust-stand tests)."""
-        self.data.ctrl[self._thrust] = self.vehicle.command_to_ctrl(np.asarray(rotor_pct, dtype=float))
+        """Per-rotor commands in %, e.g. from the flight software's mixer or a thrust-stand test."""
+        rotor = np.asarray(rotor_pct, dtype=float)[: len(self._thrust)]
+        self.data.ctrl[self._thrust] = self.vehicle.command_to_ctrl(rotor)
 
     def _apply_wind(self) -> None:
         w = self.wind_world

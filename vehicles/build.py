@@ -3,8 +3,8 @@
 The vehicle model carries no joint to the world: the scene decides (free joint, rig hinge, welded to a
 thrust stand). Everything that can be native MuJoCo is:
 
-* thrust per rotor: a site actuator at ``rotor{i}`` whose gear is the thrust axis plus the reaction
-  torque (``-spin * Q/T``); ``filterexact`` dynamics is the servo/motor lag and the actuator history
+* thrust per rotor: a site actuator at ``rotor{i}`` whose gear is the thrust axis plus the rotor drag
+  torque (``spin * Q/T``, spin +1 = clockwise from above); ``filterexact`` dynamics is the servo/motor lag and the actuator history
   buffer (``nsample``/``delay``) the transport delay;
 * axial-inflow damping: a second site actuator on the same axis, ``force = k_w (ctrl - v_axial)``
   where ctrl is the axial wind at the rotor, so thrust depends on the *air-relative* climb speed;
@@ -117,7 +117,7 @@ def add_rotor(s: mujoco.MjSpec, v: VehicleSpec, i: int, physics_dt_s: float, pre
     r = v.rotor
     aero = _aero_default(s)
     sp = r.spin[i - 1]
-    gear_axial = [0, 0, 1, 0, 0, -sp * r.torque_to_thrust_m]
+    gear_axial = [0, 0, 1, 0, 0, sp * r.torque_to_thrust_m]
     a = s.add_actuator(name=f"{prefix}thrust{i}", target=f"{prefix}rotor{i}", trntype=mujoco.mjtTrn.mjTRN_SITE)
     a.gear = gear_axial
     a.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT

@@ -85,7 +85,7 @@ class _Reader:
 @dataclasses.dataclass(frozen=True)
 class RotorSpec:
     radius_m: float
-    spin: tuple  # +1: counter-clockwise seen from above (reaction torque on the body is clockwise)
+    spin: tuple  # +1: clockwise seen from above (its drag torque turns the body counter-clockwise)
     torque_to_thrust_m: float  # rotor drag torque per unit thrust, Q/T
     axial_damping_N_per_mps: float  # dT/dw: thrust lost per m/s of axial (climb) airspeed
     hforce_N_per_mps: float  # in-plane H-force per m/s of in-plane airspeed (flapping)
@@ -203,22 +203,6 @@ class VehicleSpec:
     def hover_thrust_N(self) -> float:
         return self.mass_kg * G0 / self.n_rotors
 
-    def mixer(self) -> np.ndarray:
-        """Per-rotor command (%) = M @ [collective, roll, pitch, yaw] (%), aerospace sign convention.
-
-        Pitch: front +u/2, rear -u/2, so ``u`` is the command difference between opposite rotors (the
-        published definition of u_lon). Roll (right side down): left +u/2, right -u/2. Yaw (nose right):
-        counter-clockwise rotors +u/2, whose clockwise reaction torque turns the nose right.
-        """
-        pos = self.rotor_positions()
-        spin = np.asarray(self.rotor.spin, dtype=float)
-        M = np.zeros((self.n_rotors, 4))
-        M[:, 0] = 1.0
-        M[:, 1] = np.sign(np.round(pos[:, 1], 9)) * 0.5
-        M[:, 2] = np.sign(np.round(pos[:, 0], 9)) * 0.5
-        M[:, 3] = spin * 0.5
-        return M
-
     # -- rotor command (%) -> MuJoCo ctrl and its derivative, the "ESC / servo" of the twin --
     def hover_ctrl(self) -> float:
         r = self.rotor
@@ -227,13 +211,16 @@ class VehicleSpec:
         return float(r.speed(r.hover_command)) ** 2  # Omega^2, (rad/s)^2
 
     def command_to_ctrl(self, cmd_pct):
-        """Rotor commands in % (0 = hover trim) to actuator ctrl (blade pitch in rad, or Omega^2)."""
+        """Rotor commands in % to actuator ctrl (blade pitch in rad, or Omega^2 in (rad/s)^2).
+
+        Variable pitch: 1 % is ``blade_pitch_per_pct_rad`` of blade pitch (zero thrust at 0 %). Variable RPM:
+        the ESC command is b = command / 100 (TUHH's b in [0, 1]).
+        """
         r = self.rotor
         cmd = np.asarray(cmd_pct, dtype=float)
         if self.kind == "variable-pitch":
-            return self.hover_ctrl() + cmd * r.blade_pitch_per_pct_rad
-        b = r.hover_command + cmd / 100.0
-        return r.speed(b) ** 2
+            return cmd * r.blade_pitch_per_pct_rad
+        return r.speed(cmd / 100.0) ** 2
 
     def dctrl_dcommand(self) -> float:
         """d ctrl / d command at hover trim (per %)."""
@@ -242,6 +229,23 @@ class VehicleSpec:
             return r.blade_pitch_per_pct_rad
         b = r.hover_command
         return 2.0 * float(r.speed(b)) * float(r.dspeed_db(b)) / 100.0
+
+    @property
+    def hover_collective_pct(self) -> float:
+        """Collective at hover on the flight software's absolute scale: blade pitch in units of
+        ``blade_pitch_per_pct_rad`` (variable pitch), or 100 b_H (variable RPM)."""
+        if self.kind == "variable-pitch":
+            return self.hover_ctrl() / self.rotor.blade_pitch_per_pct_rad
+        return 100.0 * self.rotor.hover_command
+
+    @property
+    def thrust_exponent(self) -> float:
+        """Local exponent n of thrust ~ collective^n at hover (1 for blade pitch, about 1.7 for TUHH RPM)."""
+        if self.kind == "variable-pitch":
+            return 1.0
+        r = self.rotor
+        b = r.hover_command
+        return 2.0 * float(r.dspeed_db(b)) * b / float(r.speed(b))
 
     def thrust_gain(self) -> float:
         """Actuator gain: N per unit of ctrl."""

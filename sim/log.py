@@ -1,0 +1,88 @@
+"""Run logs: one Parquet table per run (``t`` in s plus one column per signal, units in the schema metadata)
+and a ``run.json`` beside it with the scenario, vehicle, seed, versions and metrics.
+
+Columns are preallocated numpy arrays filled tick by tick, so logging costs a few array stores per tick.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from rotorlab import atomic
+
+UNITS_KEY = b"units"
+META_KEY = b"rotorlab"
+
+
+class RunLog:
+    """Fixed-capacity column store.
+
+    Parameters
+    ----------
+    columns : dict
+        Column name -> unit string (``t`` is added, in s).
+    capacity : int
+        Maximum number of rows (ticks).
+    """
+
+    def __init__(self, columns: dict, capacity: int):
+        self.units = {"t": "s", **columns}
+        self._data = {k: np.full(capacity, np.nan) for k in self.units}
+        self.n = 0
+
+    def append(self, t: float, values: dict) -> None:
+        k = self.n
+        self._data["t"][k] = t
+        data = self._data
+        for name, v in values.items():
+            col = data.get(name)
+            if col is not None:
+                col[k] = v
+        self.n = k + 1
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self._data[name][: self.n]
+
+    @property
+    def columns(self) -> list[str]:
+        return list(self.units)
+
+    def table(self, meta: dict | None = None) -> pa.Table:
+        arrays = {k: v[: self.n] for k, v in self._data.items()}
+        tbl = pa.table(arrays)
+        md = {UNITS_KEY: json.dumps(self.units).encode()}
+        if meta:
+            md[META_KEY] = json.dumps(meta, default=str).encode()
+        return tbl.replace_schema_metadata(md)
+
+    def write(self, path, meta: dict | None = None) -> Path:
+        """Write the Parquet file atomically."""
+        with atomic.atomic_path(path) as tmp:
+            pq.write_table(self.table(meta), tmp)
+        return Path(path)
+
+
+def versions() -> dict:
+    import control
+    import mujoco
+
+    import rotorlab
+
+    return {"rotorlab": rotorlab.__version__, "mujoco": mujoco.__version__, "control": control.__version__,
+            "numpy": np.__version__, "python": platform.python_version()}
+
+
+def write_run(out_dir, log: RunLog, info: dict) -> Path:
+    """Write ``log.parquet`` and ``run.json`` into ``out_dir`` (both atomic); returns the folder."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    info = {**info, "versions": versions(), "rows": log.n, "columns": log.units}
+    log.write(out / "log.parquet", meta={k: v for k, v in info.items() if k != "metrics"})
+    atomic.write_json(out / "run.json", info)
+    return out

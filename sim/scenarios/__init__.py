@@ -1,0 +1,66 @@
+"""Scenarios: one module per scenario, registered here by name.
+
+A scenario module defines ``NAME``, ``DESCRIPTION``, ``SCENES`` (the scenes it can run in; the first is
+the default), ``DURATION_S`` and ``setup(ctx) -> Setup``. The runner (``rotorlab.sim.runner``) builds the
+simulator and the flight software from the :class:`Setup`, runs it, logs it and scores it with the
+scenario's ``metrics(log, ctx)`` function if the module has one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from typing import Any, Callable
+
+from rotorlab.errors import UnknownNameError
+
+# scenario name -> module under rotorlab.sim.scenarios
+SCENARIOS = {
+    "rest": "rest",
+}
+
+
+@dataclasses.dataclass
+class Context:
+    """What a scenario's setup gets: the chosen vehicle, scene, gains and options."""
+
+    vehicle: Any  # VehicleSpec
+    scene: str
+    gains: Any  # GainSet or None
+    seed: int
+    duration_s: float
+    options: dict
+
+
+@dataclasses.dataclass
+class Setup:
+    """What the runner needs to run a scenario.
+
+    ``mode``/``reference``/``excitation``/``schedule`` configure the flight software; ``disturbances`` are
+    composed into the physics; ``sensor_noise`` switches the IMU noise; ``u_limit_pct`` and
+    ``rate_limit_dps`` are the published saturations; ``extra_columns`` name scenario-specific log columns
+    (name -> unit) filled by ``on_tick(sim, fs_out) -> dict``.
+    """
+
+    mode: str = "cascade"
+    reference: Callable | None = None
+    excitation: dict = dataclasses.field(default_factory=dict)
+    schedule: list = dataclasses.field(default_factory=list)
+    disturbances: list = dataclasses.field(default_factory=list)
+    sensor_noise: bool = True
+    u_limit_pct: float | None = None
+    rate_limit_dps: float = 150.0
+    open_loop_axes: tuple = ("roll", "pitch", "yaw")
+    extra_columns: dict = dataclasses.field(default_factory=dict)
+    on_tick: Callable | None = None
+    notes: dict = dataclasses.field(default_factory=dict)
+
+
+def list_scenarios() -> list[str]:
+    return sorted(SCENARIOS)
+
+
+def get(name: str):
+    if name not in SCENARIOS:
+        raise UnknownNameError("scenario", name, SCENARIOS)
+    return importlib.import_module(f"rotorlab.sim.scenarios.{SCENARIOS[name]}")
