@@ -37,7 +37,7 @@ class UnknownNameError(RotorlabError, KeyError):
 
     def __init__(self, kind: str, name: str, valid):
         valid = sorted(valid)
-        super().__init__(f"unknown {kind} '{name}'; valid {kind}s: {', '.join(valid)}")
+        super().__init__(f"unknown {kind} '{name}'; valid: {', '.join(valid) if valid else '(none)'}")
         self.kind, self.name, self.valid = kind, name, valid
 
     def __str__(self) -> str:  # KeyError would quote the message

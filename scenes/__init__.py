@@ -24,6 +24,8 @@ PHYSICS_DT_S = 0.001
 SCENES = ("pitch-rig", "roll-rig", "thrust-stand", "free-flight")
 HOVER_HEIGHT_M = 5.0
 RIG_HEIGHT_M = 1.5
+LOAD_CELL_MASS_KG = 0.2
+LOAD_CELL_K = (2.0e4, 50.0)  # N/m along the thrust axis, N m/rad about it
 PREFIX = "vehicle/"  # names of the attached vehicle's elements: vehicle/gyro, vehicle/thrust1, ...
 RIG_AXES = {"pitch-rig": ("pitch", [0.0, -1.0, 0.0]), "roll-rig": ("roll", [1.0, 0.0, 0.0])}
 
@@ -110,19 +112,21 @@ def _thrust_stand(s, v: VehicleSpec):
     w = s.worldbody
     w.add_geom(name="stand_post", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.03, 0.5, 0], pos=[0, 0, 0.5],
                rgba=[0.3, 0.3, 0.35, 1])
-    # The load cell is the rotor mount welded to the post: MuJoCo's force/torque sensors report the
-    # interaction force between the mount and the world, i.e. what a 6-axis load cell reads.
+    # A strain-gauge load cell is a stiff spring whose deflection is the reading: the rotor mount slides
+    # along z and turns about z on stiff, well-damped springs (about 50 Hz and 120 Hz, damping ratio 0.7).
     mount = w.add_body(name="rotor_mount", pos=[0, 0, 1.0 + 0.5 * v.rotor.radius_m])
-    mount.add_geom(name="motor", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.03, 0.03, 0], mass=0.2,
+    mount.add_geom(name="motor", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.03, 0.03, 0], mass=LOAD_CELL_MASS_KG,
                    rgba=[0.2, 0.2, 0.2, 1])
+    izz = 0.5 * LOAD_CELL_MASS_KG * 0.03**2
+    mount.add_joint(name="load_cell_z", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1], stiffness=LOAD_CELL_K[0],
+                    damping=2 * 0.7 * math.sqrt(LOAD_CELL_K[0] * LOAD_CELL_MASS_KG))
+    mount.add_joint(name="load_cell_yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1], stiffness=LOAD_CELL_K[1],
+                    damping=2 * 0.7 * math.sqrt(LOAD_CELL_K[1] * izz))
     mount.add_geom(name="disc1", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[v.rotor.radius_m, 0.004, 0],
                    pos=[0, 0, 0.05], contype=0, conaffinity=0, mass=0, rgba=[0.6, 0.7, 0.9, 0.35])
-    mount.add_site(name="load_cell", size=[0.01, 0, 0])
     mount.add_site(name=f"{PREFIX}rotor1", pos=[0, 0, 0.05], size=[0.01, 0, 0])
-    s.add_sensor(name="load_force", type=mujoco.mjtSensor.mjSENS_FORCE, objtype=mujoco.mjtObj.mjOBJ_SITE,
-                 objname="load_cell")
-    s.add_sensor(name="load_torque", type=mujoco.mjtSensor.mjSENS_TORQUE, objtype=mujoco.mjtObj.mjOBJ_SITE,
-                 objname="load_cell")
+    for jn in ("load_cell_z", "load_cell_yaw"):
+        s.add_sensor(name=jn, type=mujoco.mjtSensor.mjSENS_JOINTPOS, objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=jn)
     add_rotor(s, v, 1, float(s.option.timestep), prefix=PREFIX)
 
 

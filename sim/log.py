@@ -69,13 +69,17 @@ class RunLog:
 
 
 def versions() -> dict:
-    import control
-    import mujoco
+    # package metadata, not imports: importing python-control costs seconds and a run does not need it
+    from importlib.metadata import PackageNotFoundError, version
 
-    import rotorlab
-
-    return {"rotorlab": rotorlab.__version__, "mujoco": mujoco.__version__, "control": control.__version__,
-            "numpy": np.__version__, "python": platform.python_version()}
+    out = {}
+    for pkg in ("rotorlab", "mujoco", "control", "numpy", "scipy"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = None
+    out["python"] = platform.python_version()
+    return out
 
 
 def write_run(out_dir, log: RunLog, info: dict) -> Path:

@@ -87,7 +87,7 @@ class Simulator:
         self._airframe = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{PREFIX}airframe")
         self._key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "hover")
         self._sens = {}
-        for name in ("gyro", "accel", "imu_quat", "load_force", "load_torque"):
+        for name in ("gyro", "accel", "imu_quat", "load_cell_z", "load_cell_yaw"):
             for full in (f"{PREFIX}{name}", name):
                 sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, full)
                 if sid >= 0:
@@ -226,10 +226,18 @@ class Simulator:
         mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._airframe, v, 1)
         return np.array([v[0], -v[1], -v[2]]) * RAD2DEG
 
-    def load_cell(self) -> tuple[np.ndarray, np.ndarray]:
-        """Thrust-stand force (N) and torque (N m) in the load-cell frame."""
+    def load_cell(self) -> tuple[float, float]:
+        """Thrust-stand readings: thrust (N, up) and rotor drag torque (N m, counter-clockwise from above).
+
+        The cell is tared: its spring deflection times stiffness, plus the mount weight it carries at rest.
+        """
+        from rotorlab.scenes import LOAD_CELL_K, LOAD_CELL_MASS_KG
+
         sd = self.data.sensordata
-        return sd[self._sens["load_force"]].copy(), sd[self._sens["load_torque"]].copy()
+        g = -float(self.model.opt.gravity[2])
+        force = LOAD_CELL_K[0] * float(sd[self._sens["load_cell_z"]][0]) + LOAD_CELL_MASS_KG * g
+        torque = LOAD_CELL_K[1] * float(sd[self._sens["load_cell_yaw"]][0])
+        return force, torque
 
     def rotor_speed_rad_s(self) -> np.ndarray:
         """Tachometer: rotor speed of each rotor (variable RPM: from the motor state; variable pitch: fixed)."""

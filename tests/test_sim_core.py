@@ -1,0 +1,108 @@
+"""Headless runs, logs, determinism, CLI, and bad input of the simulation core."""
+
+import json
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from rotorlab.cli import main
+from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.scenes import build_scene
+from rotorlab.sim.runner import run_scenario
+from rotorlab.vehicles import load_vehicle, vehicle_path
+
+
+def _arrays(path):
+    t = pq.read_table(path)
+    return {c: np.asarray(t[c]) for c in t.column_names}
+
+
+def test_same_seed_bit_identical_log(tmp_path):
+    a = run_scenario("rest", "anteos-p2a2", scene="free-flight", duration_s=2.0, seed=7, out=tmp_path / "a")
+    b = run_scenario("rest", "anteos-p2a2", scene="free-flight", duration_s=2.0, seed=7, out=tmp_path / "b")
+    c = run_scenario("rest", "anteos-p2a2", scene="free-flight", duration_s=2.0, seed=8, out=tmp_path / "c")
+    la, lb, lc = (_arrays(r.out_dir / "log.parquet") for r in (a, b, c))
+    for col in la:
+        assert np.array_equal(la[col], lb[col], equal_nan=True), col
+    assert not np.array_equal(la["q"], lc["q"])
+
+
+def test_log_has_units_and_run_json(tmp_path):
+    r = run_scenario("rest", "anteos-p2a2", duration_s=1.0, out=tmp_path)
+    md = pq.read_schema(tmp_path / "log.parquet").metadata
+    units = json.loads(md[b"units"])
+    assert units["t"] == "s" and units["theta"] == "deg" and units["q"] == "deg/s" and units["u_lon"] == "%"
+    info = json.loads((tmp_path / "run.json").read_text())
+    assert info["scenario"] == "rest" and info["vehicle"] == "anteos-p2a2" and info["seed"] == 0
+    assert info["versions"]["mujoco"] and info["rows"] == 50
+    assert r.stopped is None
+
+
+def test_noise_is_seeded_and_switchable():
+    noisy = run_scenario("rest", "anteos-p2a2", duration_s=1.0, seed=1)
+    quiet = run_scenario("rest", "anteos-p2a2", duration_s=1.0, seed=1, sensor_noise=False)
+    v = load_vehicle("anteos-p2a2")
+    std = np.std(noisy.log["q"] - noisy.log["q_true"])
+    assert std == pytest.approx(v.imu.gyro_noise_dps, rel=0.3)
+    assert np.max(np.abs(quiet.log["q"])) < 1e-9
+
+
+def test_unknown_names_list_valid_ones():
+    with pytest.raises(UnknownNameError, match="anteos-p2a2"):
+        load_vehicle("p2a2")
+    with pytest.raises(UnknownNameError, match="pitch-rig"):
+        build_scene("gimbal", "anteos-p2a2")
+    with pytest.raises(UnknownNameError, match="rest"):
+        run_scenario("nothing", "anteos-p2a2")
+
+
+def _broken_vehicle(tmp_path, old, new):
+    text = vehicle_path("anteos-p2a2").read_text().replace(old, new)
+    assert text != vehicle_path("anteos-p2a2").read_text()
+    p = tmp_path / "vehicle.toml"
+    p.write_text(text)
+    return p
+
+
+def test_negative_mass_names_file_field_expected_got(tmp_path):
+    p = _broken_vehicle(tmp_path, "mass_kg = 5.0", "mass_kg = -5.0")
+    with pytest.raises(ConfigError) as exc:
+        load_vehicle(p)
+    msg = str(exc.value)
+    assert str(p) in msg and "airframe.mass_kg" in msg and "> 0" in msg and "-5.0" in msg
+
+
+def test_missing_field_is_named(tmp_path):
+    p = _broken_vehicle(tmp_path, "arm_m = 0.415", "")
+    with pytest.raises(ConfigError, match="airframe.arm_m"):
+        load_vehicle(p)
+
+
+def test_delay_not_multiple_of_physics_step(tmp_path):
+    p = _broken_vehicle(tmp_path, "delay_s = 0.06 ", "delay_s = 0.0605 ")
+    with pytest.raises(ConfigError, match=r"rotor.delay_s.*multiple of the physics step"):
+        build_scene("pitch-rig", p)
+
+
+def test_diverging_run_stops_and_keeps_log(tmp_path):
+    gains = tmp_path / "unstable.toml"
+    # positive feedback on the rate loop: the airframe runs away to the rig stop
+    gains.write_text("[pitch.outer]\nkp = 9.26\nkd = 1.11\ntf = 0.03\n[pitch.inner]\nkp = -2.0\nki = 0.0\n")
+    r = run_scenario("rest", "anteos-p2a2", scene="free-flight", duration_s=20.0, gains=gains, out=tmp_path / "run")
+    assert r.stopped and "tilt" in r.stopped
+    info = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert info["stopped"] == r.stopped
+    rows = pq.read_table(tmp_path / "run" / "log.parquet").num_rows
+    assert 0 < rows < 1000
+
+
+def test_cli_list_and_run(tmp_path, capsys):
+    assert main(["list", "--json"]) == 0
+    cat = json.loads(capsys.readouterr().out)
+    assert set(cat["vehicles"]) == {"anteos-p2a2", "anteos-a2minib", "tuhh-quad"}
+    assert "free-flight" in cat["scenes"] and "rest" in cat["scenarios"]
+    assert main(["run", "rest", "--vehicle", "tuhh-quad", "--duration", "1", "--seed", "3", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "log.parquet").exists() and (tmp_path / "run.json").exists()
+    assert main(["run", "rest", "--vehicle", "nope"]) == 2
+    assert "valid: anteos-a2minib, anteos-p2a2, tuhh-quad" in capsys.readouterr().err
