@@ -28,7 +28,7 @@ def euler_deg_from_quat(quat_wxyz) -> np.ndarray:
     pitch = math.asin(max(-1.0, min(1.0, r20)))  # forward axis rising = nose up
     roll = math.atan2(r21, r22)  # left axis rising = right side down
     yaw = -math.atan2(r10, r00)  # heading turning clockwise seen from above = nose right
-    return np.array([roll, pitch, yaw]) * RAD2DEG
+    return np.array([roll * RAD2DEG, pitch * RAD2DEG, yaw * RAD2DEG])
 
 
 def rates_dps_from_flu(omega_flu_rad_s) -> np.ndarray:

@@ -96,6 +96,8 @@ class Simulator:
                     break
         self._bearing = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
         self._mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
+        self._free = self.scene.name == "free-flight"
+        self._floor_z = FLOOR_CLEARANCE_M + self.vehicle.body_size_m[2]
         self.wind_world = np.zeros(3)
         self.reset(seed)
 
@@ -168,22 +170,21 @@ class Simulator:
     def check(self) -> str | None:
         """Why the run must stop, or None: NaN, a MuJoCo warning, the rig's stops, a crash or a flip."""
         d, m = self.data, self.model
-        if not np.all(np.isfinite(d.qpos)) or not np.all(np.isfinite(d.qvel)):
-            return f"state became NaN/inf at t = {self.time:.3f} s"
+        # MuJoCo flags (and resets) NaN/inf states through these warnings, so no array scan is needed here
         for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS):
             if d.warning[w].number > 0:
-                return f"MuJoCo warning {w.name} at t = {self.time:.3f} s (the simulation diverged)"
+                return f"MuJoCo warning {w.name} at t = {self.time:.3f} s (the simulation diverged: NaN/inf or huge state)"
         if self._bearing >= 0:
             ang = math.degrees(d.qpos[m.jnt_qposadr[self._bearing]] + d.qpos[m.jnt_qposadr[self._mount]])
             if abs(ang) >= self.scene.stop_deg - 0.5:
                 return (f"{self.scene.rig_axis} angle {ang:+.1f} deg reached the rig stop "
                         f"(+-{self.scene.stop_deg:g} deg) at t = {self.time:.3f} s")
-        elif self.scene.name == "free-flight":
-            roll, pitch, _ = self.true_attitude_deg()
-            tilt = math.degrees(math.acos(max(-1.0, min(1.0, math.cos(math.radians(roll)) * math.cos(math.radians(pitch))))))
+        elif self._free:
+            # tilt from the body z axis: R[2, 2] = cos(tilt)
+            tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(d.xmat[self._airframe, 8])))))
             if tilt > FREE_FLIGHT_TILT_LIMIT_DEG:
                 return f"tilt {tilt:.0f} deg beyond the divergence limit {FREE_FLIGHT_TILT_LIMIT_DEG:g} deg at t = {self.time:.3f} s"
-            if d.xpos[self._airframe, 2] < FLOOR_CLEARANCE_M + self.vehicle.body_size_m[2]:
+            if d.xpos[self._airframe, 2] < self._floor_z:
                 return f"the vehicle hit the floor at t = {self.time:.3f} s"
         return None
 
