@@ -1,0 +1,279 @@
+"""The flight software the simulator runs every tick: references, outer loops, attitude cascade, supervisor,
+plug-ins, saturation and mixer, in pure Python (no MuJoCo) so it costs microseconds per tick.
+
+Modes
+-----
+``'cascade'``
+    Attitude cascade on roll and pitch to ``phi_ref``/``theta_ref``, heading hold on ``psi_ref``, and
+    altitude hold on ``z_ref`` when one is set (otherwise the collective is ``u_col``).
+``'open-loop'``
+    Quasi-open-loop identification: on the axes in ``open_loop_axes`` the command is the external command
+    (``u_lat``/``u_lon``/``u_yaw`` set by :meth:`FlightSoftware.set_reference`) plus excitation plus, on roll
+    and pitch, the :class:`~rotorlab.sim.control.supervisor.Supervisor` output; other axes stay in cascade.
+``'position'``
+    Position hold (``x_ref``, ``y_ref``) -> roll/pitch set-points, altitude hold (``z_ref``), heading hold.
+
+Signals (units: deg, deg/s, %, m, m/s; frames as in :mod:`rotorlab.sim.control.position`)
+------------------------------------------------------------------------------------------
+Measurements ``phi, theta, psi, p, q, r`` (always) and ``x, y, z, vx, vy, vz`` (NED; needed for position and
+altitude hold). Set-points ``phi_ref, theta_ref, psi_ref, x_ref, y_ref, z_ref``; a missing heading or position
+set-point is latched to the measurement at the first tick of the mode. Commands ``u_col`` (collective),
+``u_lat`` (roll), ``u_lon`` (pitch), ``u_yaw``; rate set-points ``p_ref, q_ref, r_ref``; supervisor outputs
+``sup_lat, sup_lon``; rotor commands ``rotor_pct`` (array, %).
+
+Excitation
+----------
+``excitation={'u_lon': array_or_callable, 'theta_ref': ...}`` is added every tick: set-point excitation to the
+set-point before the loops, command excitation inside the inner PID before its saturation (so anti-windup sees
+it) or to the open-loop command. An array gives element ``k`` on the ``k``-th tick after :meth:`reset` (zero
+after its end); a callable is evaluated at ``t``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.gains import GainSet
+from rotorlab.sim.control.cascade import AttitudeController
+from rotorlab.sim.control.mixer import Mixer
+from rotorlab.sim.control.plugins import Plugin
+from rotorlab.sim.control.position import AltitudeHold, PositionGains, PositionHold
+from rotorlab.sim.control.supervisor import Supervisor
+
+MODES = ("cascade", "open-loop", "position")
+SETPOINTS = ("phi_ref", "theta_ref", "psi_ref", "x_ref", "y_ref", "z_ref")
+COMMANDS = ("u_col", "u_lat", "u_lon", "u_yaw")
+AXES = ("roll", "pitch", "yaw")
+_AXIS_CMD = {"roll": "u_lat", "pitch": "u_lon", "yaw": "u_yaw"}
+
+
+class FlightSoftware:
+    """Everything between the sensors and the rotor commands.
+
+    Parameters
+    ----------
+    gains : rotorlab.gains.GainSet
+        Attitude cascade gains.
+    mixer : rotorlab.sim.control.mixer.Mixer
+    dt : float
+        Tick period, s (published: 0.02).
+    mode : {'cascade', 'open-loop', 'position'}
+    rate_limit_dps, u_limit_pct : float
+        Roll/pitch rate set-point and command saturations (published: 150 deg/s; 30 % P2-A2, 40 % A2-MINI/B).
+    yaw_rate_limit_dps, yaw_u_limit_pct : float
+        Yaw saturations.
+    position_gains : PositionGains, optional
+        Outer loops; default ``PositionGains()`` (5 kg, 60 % hover collective).
+    supervisor : Supervisor, optional
+        Template for the roll and pitch supervisors of open-loop mode (default ``Supervisor()``, +-20 deg).
+    open_loop_axes : tuple of str
+        Axes that open-loop mode opens (default all three).
+    antiwindup : {'clamp', 'backcalc', None}
+    schedule : list of (t_s, GainSet), optional
+        In-flight gain switches.
+    reference : callable t -> dict, optional
+        Set-points/external commands by name, evaluated each tick over those of :meth:`set_reference`.
+    excitation : dict name -> array or callable, optional
+    plugins : sequence of Plugin
+    """
+
+    def __init__(self, gains: GainSet, mixer: Mixer, dt: float = 0.02, mode: str = "cascade",
+                 rate_limit_dps: float = 150.0, u_limit_pct: float = 30.0, yaw_rate_limit_dps: float = 90.0,
+                 yaw_u_limit_pct: float = 20.0, position_gains: PositionGains | None = None,
+                 supervisor: Supervisor | None = None, open_loop_axes=AXES, antiwindup: str | None = "clamp",
+                 schedule=None, reference=None, excitation=None, plugins=()):
+        if not isinstance(mixer, Mixer):
+            raise ConfigError(field="mixer", expected="a rotorlab.sim.control.mixer.Mixer", got=type(mixer).__name__)
+        self.dt = float(dt)
+        self.mixer = mixer
+        self.u_limit_pct = float(u_limit_pct)
+        self.yaw_u_limit_pct = float(yaw_u_limit_pct)
+        self.attitude = AttitudeController(gains, dt, rate_limit_dps, u_limit_pct, yaw_rate_limit_dps,
+                                           yaw_u_limit_pct, antiwindup, schedule)
+        self.position_gains = position_gains or PositionGains()
+        self.position = PositionHold(self.position_gains, dt)
+        self.altitude = AltitudeHold(self.position_gains, dt)
+        sup = supervisor or Supervisor()
+        self.sup_roll = Supervisor(sup.limit_deg, sup.engage_frac, sup.kp, sup.kd, sup.u_limit_pct)
+        self.sup_pitch = Supervisor(sup.limit_deg, sup.engage_frac, sup.kp, sup.kd, sup.u_limit_pct)
+        for ax in open_loop_axes:
+            if ax not in AXES:
+                raise UnknownNameError("axis", ax, AXES)
+        self.open_loop_axes = frozenset(open_loop_axes)
+        if reference is not None and not callable(reference):
+            raise ConfigError(field="reference", expected="a callable t -> dict", got=type(reference).__name__)
+        self.reference = reference
+        self.excitation = {}
+        for name, sig in (excitation or {}).items():
+            if name not in SETPOINTS + COMMANDS:
+                raise UnknownNameError("excitation signal", name, SETPOINTS + COMMANDS)
+            self.excitation[name] = sig if callable(sig) else np.asarray(sig, dtype=float).ravel().tolist()
+        self.plugins = list(plugins)
+        for pl in self.plugins:
+            if not isinstance(pl, Plugin):
+                raise ConfigError(field="plugins", expected="objects with reset() and step(t, signals)",
+                                  got=type(pl).__name__)
+        self._ref = {}
+        self.set_mode(mode)
+        self.reset()
+
+    # ------------------------------------------------------------------ configuration
+    def set_mode(self, mode: str) -> None:
+        """Change mode; loops that close at the next tick start bumplessly from the last commands."""
+        if mode not in MODES:
+            raise UnknownNameError("mode", mode, MODES)
+        self.mode = mode
+        self._engage = True
+
+    def set_reference(self, **values) -> None:
+        """Set set-points and external commands by name (``theta_ref=5.0``, ``u_lon=3.0``; ``None`` clears a
+        set-point so it is latched again)."""
+        for name, v in values.items():
+            if name not in SETPOINTS + COMMANDS:
+                raise UnknownNameError("reference", name, SETPOINTS + COMMANDS)
+            if v is None:
+                self._ref.pop(name, None)
+            else:
+                self._ref[name] = float(v)
+
+    def reset(self) -> None:
+        """Zero every loop, restart the excitation arrays and re-latch missing set-points."""
+        self.attitude.reset()
+        self.position.reset()
+        self.altitude.reset()
+        self.sup_roll.reset()
+        self.sup_pitch.reset()
+        for pl in self.plugins:
+            pl.reset()
+        self._k = 0
+        self._latched = {}
+        self._last = {"u_lat": 0.0, "u_lon": 0.0, "u_yaw": 0.0}
+        self._engage = False
+        self._sig = {}
+
+    # ------------------------------------------------------------------ tick
+    def _exc(self, name: str, t: float) -> float:
+        sig = self.excitation.get(name)
+        if sig is None:
+            return 0.0
+        if callable(sig):
+            return float(sig(t))
+        return sig[self._k] if self._k < len(sig) else 0.0
+
+    def _setpoint(self, name: str, refs: dict, meas_value, t: float) -> float:
+        v = refs.get(name)
+        if v is None:
+            v = self._latched.get(name)
+            if v is None:
+                if meas_value is None:
+                    raise ConfigError(f"set-point '{name}' is not set and there is no measurement to latch it to",
+                                      field=name[:-4], expected="a measurement in meas")
+                v = self._latched[name] = float(meas_value)
+        return v + (self._exc(name, t) if name in self.excitation else 0.0)
+
+    def _bumpless(self, meas: dict) -> None:
+        att = self.attitude
+        for ax_name, axis, ang, rate in (("roll", att.roll, "phi", "p"), ("pitch", att.pitch, "theta", "q"),
+                                         ("yaw", att.yaw, "psi", "r")):
+            axis.reset(self._last[_AXIS_CMD[ax_name]], meas[ang], meas[rate])
+        self._latched = {}
+        self._engage = False
+
+    def step(self, t: float, meas: dict) -> dict:
+        """One tick at time ``t`` (s). Returns a new dict of commands, set-points and internal signals."""
+        # written for speed (it runs every tick): locals, inline saturation, no per-tick allocation but the
+        # returned dict
+        if self._engage:
+            self._bumpless(meas)
+        refs = self._ref
+        if self.reference is not None:
+            refs = dict(refs)
+            refs.update(self.reference(t))
+        exc = self.excitation
+        sig = self._sig
+        sig.update(meas)
+        phi, theta, psi = meas["phi"], meas["theta"], meas["psi"]
+        p, q, r = meas["p"], meas["q"], meas["r"]
+        mode = self.mode
+
+        # outer loops
+        if mode == "position":
+            x_ref = self._setpoint("x_ref", refs, meas.get("x"), t)
+            y_ref = self._setpoint("y_ref", refs, meas.get("y"), t)
+            phi_ref, theta_ref = self.position.step(x_ref, y_ref, meas["x"], meas["y"], meas["vx"], meas["vy"], psi)
+            if exc:
+                phi_ref += self._exc("phi_ref", t)
+                theta_ref += self._exc("theta_ref", t)
+            sig["x_ref"], sig["y_ref"] = x_ref, y_ref
+        else:
+            phi_ref = refs.get("phi_ref", 0.0)
+            theta_ref = refs.get("theta_ref", 0.0)
+            if exc:
+                phi_ref += self._exc("phi_ref", t)
+                theta_ref += self._exc("theta_ref", t)
+        psi_ref = refs.get("psi_ref")
+        if psi_ref is None or exc:
+            psi_ref = self._setpoint("psi_ref", refs, psi, t)
+        if mode == "position" or "z_ref" in refs:
+            z_ref = self._setpoint("z_ref", refs, meas.get("z"), t)
+            u_col = self.altitude.step(-z_ref, -meas["z"], -meas["vz"], phi, theta)
+            sig["z_ref"] = z_ref
+        else:
+            u_col = refs.get("u_col", self.position_gains.hover_collective_pct)
+        if exc:
+            u_col += self._exc("u_col", t)
+            ff_lat, ff_lon, ff_yaw = self._exc("u_lat", t), self._exc("u_lon", t), self._exc("u_yaw", t)
+        else:
+            ff_lat = ff_lon = ff_yaw = 0.0
+
+        # attitude
+        att = self.attitude
+        if t >= att.t_next_switch:
+            att.apply_schedule(t)
+        if mode == "open-loop":
+            ol = self.open_loop_axes
+            sup_lat = self.sup_roll.step(phi, p) if "roll" in ol else 0.0
+            sup_lon = self.sup_pitch.step(theta, q) if "pitch" in ol else 0.0
+            if "roll" in ol:
+                u_lat, p_ref = refs.get("u_lat", 0.0) + ff_lat + sup_lat, math.nan
+            else:
+                u_lat, p_ref = att.roll.step(phi_ref, phi, p, ff_lat)
+            if "pitch" in ol:
+                u_lon, q_ref = refs.get("u_lon", 0.0) + ff_lon + sup_lon, math.nan
+            else:
+                u_lon, q_ref = att.pitch.step(theta_ref, theta, q, ff_lon)
+            if "yaw" in ol:
+                u_yaw, r_ref = refs.get("u_yaw", 0.0) + ff_yaw, math.nan
+            else:
+                u_yaw, r_ref = att.yaw.step(psi_ref, psi, r, ff_yaw)
+            sig["sup_lat"], sig["sup_lon"] = sup_lat, sup_lon
+        else:
+            u_lat, p_ref = att.roll.step(phi_ref, phi, p, ff_lat)
+            u_lon, q_ref = att.pitch.step(theta_ref, theta, q, ff_lon)
+            u_yaw, r_ref = att.yaw.step(psi_ref, psi, r, ff_yaw)
+
+        sig["phi_ref"], sig["theta_ref"], sig["psi_ref"] = phi_ref, theta_ref, psi_ref
+        sig["p_ref"], sig["q_ref"], sig["r_ref"] = p_ref, q_ref, r_ref
+
+        if self.plugins:
+            sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"] = u_col, u_lat, u_lon, u_yaw
+            for pl in self.plugins:
+                out = pl.step(t, sig)
+                if out:
+                    sig.update(out)
+            u_col, u_lat, u_lon, u_yaw = sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"]
+
+        lim, ylim, mx = self.u_limit_pct, self.yaw_u_limit_pct, self.mixer
+        u_lat = lim if u_lat > lim else (-lim if u_lat < -lim else u_lat)
+        u_lon = lim if u_lon > lim else (-lim if u_lon < -lim else u_lon)
+        u_yaw = ylim if u_yaw > ylim else (-ylim if u_yaw < -ylim else u_yaw)
+        u_col = mx.out_max if u_col > mx.out_max else (mx.out_min if u_col < mx.out_min else u_col)
+        sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"] = u_col, u_lat, u_lon, u_yaw
+        sig["rotor_pct"] = mx.mix(u_col, u_lat, u_lon, u_yaw)
+        last = self._last
+        last["u_lat"], last["u_lon"], last["u_yaw"] = u_lat, u_lon, u_yaw
+        self._k += 1
+        return dict(sig)
