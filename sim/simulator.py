@@ -166,6 +166,8 @@ class Simulator:
                 dist.update(self, t)
         self._apply_wind()
         mujoco.mj_step(self.model, d, nstep=self.n_substeps)
+        # mj_step leaves the sensors of the state before its last step; the IMU is sampled at the tick
+        mujoco.mj_forward(self.model, d)
 
     def check(self) -> str | None:
         """Why the run must stop, or None: NaN, a MuJoCo warning, the rig's stops, a crash or a flip."""

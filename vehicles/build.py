@@ -129,7 +129,10 @@ def add_rotor(s: mujoco.MjSpec, v: VehicleSpec, i: int, physics_dt_s: float, pre
     nsample = int(round(r.delay_s[i - 1] / physics_dt_s))
     if nsample > 0:
         a.nsample = nsample + 1
-        a.delay = nsample * physics_dt_s
+        # a quarter step short of the whole number: MuJoCo reads the zero-order-held history at
+        # time - delay, and the accumulated float time would otherwise sometimes land just before the
+        # wanted sample and add a whole extra physics step of delay (61 instead of 60 steps at t = 1 s)
+        a.delay = (nsample - 0.25) * physics_dt_s
     kw = r.axial_damping_N_per_mps
     a = s.add_actuator(name=f"{prefix}inflow{i}", target=f"{prefix}rotor{i}", default=aero)
     a.gear = gear_axial

@@ -17,6 +17,13 @@ from rotorlab.errors import UnknownNameError
 # scenario name -> module under rotorlab.sim.scenarios
 SCENARIOS = {
     "rest": "rest",
+    "setpoint": "setpoint",
+    "gust": "gust",
+    "rope-pull": "rope_pull",
+    "hover": "hover",
+    "prbs": "prbs",
+    "prbs-closed": "prbs_closed",
+    "prbs-flight": "prbs_flight",
 }
 
 

@@ -1,0 +1,98 @@
+"""Steady mean wind, and the shared plumbing of every wind disturbance.
+
+Wind enters the physics only through ``sim.wind_world`` (m/s, MuJoCo world, z up): the simulator turns it into
+fuselage drag (MuJoCo's fluid model with ``opt.wind``) and rotor inflow / H-force (the rotor aero actuators).
+Wind disturbances add up; each logs the *total* wind as ground truth in ``wind_u, wind_v, wind_w`` (m/s, NED:
+north, east, down, the frame of the logged ``x, y, z``), so the log is the same whichever of them is listed first.
+
+Directions are meteorological: ``from_deg`` is where the wind comes from, clockwise from north (the world x
+axis, the vehicle's nose at the hover keyframe). ``from_deg = 0`` is a headwind: it pitches a hovering
+vehicle nose up (H-force above the CG and blade flapping), so the position hold answers nose into the wind.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rotorlab.errors import ConfigError, RotorlabError
+from rotorlab.sim.disturbances.base import Disturbance
+
+WIND_COLUMNS = {"wind_u": "m/s", "wind_v": "m/s", "wind_w": "m/s"}
+_NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
+
+
+def toward_ned(from_deg: float) -> np.ndarray:
+    """Unit horizontal vector (NED) along which air coming from ``from_deg`` moves."""
+    a = math.radians(from_deg)
+    return -np.array([math.cos(a), math.sin(a), 0.0])
+
+
+class WindDisturbance(Disturbance):
+    """A wind disturbance. Subclasses define ``wind_ned(t) -> (3,)``: the wind (m/s, NED) over the control
+    period that starts at ``t`` (s)."""
+
+    columns = WIND_COLUMNS
+
+    def update(self, sim, t: float) -> None:
+        sim.wind_world += self.wind_ned(t) * _NED_TO_ZUP
+
+    def values(self, sim) -> dict:
+        # the total wind the coming control period is flown in (every wind disturbance writes the same sum)
+        t = sim.time
+        w = sum(d.wind_ned(t) for d in sim.disturbances if isinstance(d, WindDisturbance))
+        return {"wind_u": w[0], "wind_v": w[1], "wind_w": w[2]}
+
+
+class SampledWind(WindDisturbance):
+    """Wind drawn as a whole record at :meth:`reset` (seeded) and played back one sample per control tick.
+    Subclasses define ``record_ned(rng, n, dt) -> (n, 3)``: ``n`` NED samples (m/s) every ``dt`` s."""
+
+    def __init__(self, duration_s: float):
+        if not duration_s > 0:
+            raise ConfigError(field="duration_s", expected="the run length in s (> 0)", got=duration_s)
+        self.duration_s = float(duration_s)
+        self._dt = None
+        self._w = None
+
+    def reset(self, sim, rng) -> None:
+        self._dt = sim.control_dt_s
+        n = int(math.ceil(self.duration_s / self._dt)) + 1
+        self._w = self.record_ned(rng, n, self._dt)
+
+    def wind_ned(self, t: float) -> np.ndarray:
+        k = int(round(t / self._dt))
+        if k >= len(self._w):
+            raise RotorlabError(f"the '{self.name}' record is {self.duration_s:g} s long; the run asked for t = {t:.3f} s "
+                                "(give the disturbance the run's duration)")
+        return self._w[k]
+
+
+class MeanWind(WindDisturbance):
+    """Constant wind.
+
+    Parameters
+    ----------
+    speed_mps : float
+        Horizontal wind speed, m/s (the A2-MINI/B flight test: 2.5).
+    from_deg : float
+        Where it comes from, deg clockwise from north (0: headwind).
+    vertical_mps : float
+        Vertical air velocity, m/s, positive down (NED).
+    """
+
+    name = "mean-wind"
+
+    def __init__(self, speed_mps: float, from_deg: float = 0.0, vertical_mps: float = 0.0):
+        if not speed_mps >= 0:
+            raise ConfigError(field="speed_mps", expected="a speed >= 0 m/s", got=speed_mps)
+        self.speed_mps = float(speed_mps)
+        self.from_deg = float(from_deg)
+        self._w = speed_mps * toward_ned(from_deg) + np.array([0.0, 0.0, float(vertical_mps)])
+
+    def wind_ned(self, t: float) -> np.ndarray:
+        return self._w
+
+
+__all__ = ["MeanWind", "WindDisturbance", "SampledWind", "WIND_COLUMNS", "toward_ned"]
