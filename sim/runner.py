@@ -35,6 +35,7 @@ class RunResult:
     info: dict
     out_dir: Path | None
     stopped: str | None  # why the run stopped early, or None
+    poses: object = None  # rotorlab.sim.poses.PoseTrack with run_scenario(record_poses=True)
 
     @property
     def metrics(self) -> dict:
@@ -70,11 +71,12 @@ def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: fl
 
 def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None, gains=None, seed: int = 0,
                  duration_s: float | None = None, out=None, options: dict | None = None, progress: bool = False,
-                 sensor_noise: bool | None = None) -> RunResult:
+                 sensor_noise: bool | None = None, record_poses: bool = False) -> RunResult:
     """Run scenario ``name`` headless; write ``log.parquet`` and ``run.json`` into ``out`` when given.
 
     A run that diverges (NaN, MuJoCo warning, rig stop, crash) stops early, keeps the log written so far and
-    records the reason in ``run.json`` under ``stopped``.
+    records the reason in ``run.json`` under ``stopped``. ``record_poses`` keeps the body poses, rotor thrusts,
+    wind and tendon paths of every tick in ``RunResult.poses`` (for :func:`rotorlab.sim.rerun_log.record_run`).
     """
     mod = scenarios.get(name)
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
@@ -92,14 +94,19 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     sim = Simulator(scene, v, seed=seed, sensor_noise=noise, disturbances=setup.disturbances)
     fs = make_flight_software(v, gs, setup)
     n_ticks = int(round(duration_s / sim.control_dt_s))
-    columns = dict(BASE_COLUMNS)
+    columns = {} if setup.drive is not None else dict(BASE_COLUMNS)
     if scene == "free-flight":
         columns.update(FLIGHT_COLUMNS)
     for dist in setup.disturbances:
         columns.update(dist.columns)
     columns.update(setup.extra_columns)
     log = RunLog(columns, n_ticks + 1)
-    stopped = _loop(sim, fs, log, n_ticks, setup, progress)
+    poses = None
+    if record_poses:
+        from rotorlab.sim.poses import PoseTrack
+
+        poses = PoseTrack(sim, n_ticks + 1)
+    stopped = _loop(sim, fs, log, n_ticks, setup, progress, poses)
     info = {
         "scenario": name, "vehicle": v.name, "scene": scene, "seed": seed, "duration_s": duration_s,
         "gains": gs.name if gs else None, "gain_values": _gain_dict(gs), "control_dt_s": sim.control_dt_s,
@@ -109,18 +116,24 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     metrics_fn = getattr(mod, "metrics", None)
     info["metrics"] = metrics_fn(log, ctx, setup) if metrics_fn else {}
     out_dir = write_run(out, log, info) if out is not None else None
-    return RunResult(log, info, out_dir, stopped)
+    return RunResult(log, info, out_dir, stopped, poses.trimmed() if poses is not None else None)
 
 
-def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, progress: bool) -> str | None:
+def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, progress: bool,
+          poses=None) -> str | None:
     from tqdm import tqdm
 
     dt = sim.control_dt_s
     prev_rates = sim.true_rates_dps()
     on_tick = setup.on_tick
     it = tqdm(range(n_ticks), desc="simulating", unit="tick", disable=not progress, leave=False)
+    drive = setup.drive
     for _ in it:
         t = sim.time
+        if drive is not None:  # bench tests: the scenario drives the actuators itself, no flight software
+            log.append(t, drive(sim, t))
+            sim.tick()
+            continue
         meas = sim.measure()
         out = fs.step(t, meas)
         sim.set_rotor_commands(out["rotor_pct"])
@@ -135,6 +148,8 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
         for dist in sim.disturbances:
             out.update(dist.values(sim))
         log.append(t, out)
+        if poses is not None:
+            poses.record(sim)
         sim.tick()
         reason = sim.check()
         if reason:

@@ -128,3 +128,21 @@ def test_hover_keyframe_is_a_trim():
         sim.tick()
     assert abs(sim.data.qpos[2] - z0) < 1e-4
     assert np.max(np.abs(sim.true_attitude_deg())) < 1e-3
+
+
+def test_thrust_sweep_scenario_recovers_thrust_constant():
+    from rotorlab.sim.runner import run_scenario
+
+    v = load_vehicle("tuhh-quad")
+    r = run_scenario("thrust-sweep", "tuhh-quad", options={"levels_pct": [30.0, 60.0, 90.0], "hold_s": 0.5})
+    assert r.metrics["k_thrust_N_per_rad2_s2"] == pytest.approx(v.rotor.k_thrust, rel=1e-3)
+    np.testing.assert_allclose(r.metrics["omega_rad_s"], v.rotor.speed(np.array([0.3, 0.6, 0.9])), rtol=1e-3)
+
+
+def test_thrust_steps_scenario_recovers_motor_lag():
+    from rotorlab.sim.runner import run_scenario
+
+    r = run_scenario("thrust-steps", "tuhh-quad")
+    # rotor 1 (pitch pair): 1/26.963 s; the stiff load cell adds a few ms of apparent delay, not lag
+    assert r.metrics["time_constant_s"] == pytest.approx(1 / 26.963, rel=0.05)
+    assert 0.028 <= r.metrics["delay_s"] <= 0.028 + 0.008

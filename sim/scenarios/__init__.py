@@ -24,6 +24,8 @@ SCENARIOS = {
     "prbs": "prbs",
     "prbs-closed": "prbs_closed",
     "prbs-flight": "prbs_flight",
+    "thrust-sweep": "thrust_sweep",
+    "thrust-steps": "thrust_steps",
 }
 
 
@@ -46,7 +48,8 @@ class Setup:
     ``mode``/``reference``/``excitation``/``schedule`` configure the flight software; ``disturbances`` are
     composed into the physics; ``sensor_noise`` switches the IMU noise; ``u_limit_pct`` and
     ``rate_limit_dps`` are the published saturations; ``extra_columns`` name scenario-specific log columns
-    (name -> unit) filled by ``on_tick(sim, fs_out) -> dict``.
+    (name -> unit) filled by ``on_tick(sim, fs_out) -> dict``. A bench scenario (thrust stand) sets
+    ``drive(sim, t) -> dict`` instead: it commands the rotor itself and returns the extra columns.
     """
 
     mode: str = "cascade"
@@ -60,6 +63,7 @@ class Setup:
     open_loop_axes: tuple = ("roll", "pitch", "yaw")
     extra_columns: dict = dataclasses.field(default_factory=dict)
     on_tick: Callable | None = None
+    drive: Callable | None = None  # drive(sim, t) -> dict of extra columns; replaces the flight software (bench tests)
     notes: dict = dataclasses.field(default_factory=dict)
 
 
