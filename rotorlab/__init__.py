@@ -9,3 +9,18 @@ Importing this package stays light: nothing here imports MuJoCo, so ``rotorlab.i
 """
 
 __version__ = "0.1.0"
+
+# Gymnasium environments (rotorlab issue 7): registered by entry-point string, so MuJoCo loads only on make().
+try:
+    import gymnasium as _gym
+except ImportError:  # gymnasium is a dependency; a stripped install still imports rotorlab
+    pass
+else:
+    for _id, _entry, _kw in (
+        ("rotorlab/PitchRig-v0", "rotorlab.sim.env_rig:RigEnv", {"axis": "pitch"}),
+        ("rotorlab/RollRig-v0", "rotorlab.sim.env_rig:RigEnv", {"axis": "roll"}),
+        ("rotorlab/Hover-v0", "rotorlab.sim.env_hover:HoverEnv", {}),
+    ):
+        if _id not in _gym.registry:
+            _gym.register(id=_id, entry_point=_entry, kwargs=_kw)
+    del _id, _entry, _kw, _gym

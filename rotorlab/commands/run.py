@@ -17,6 +17,8 @@ def add_parser(sub):
     p.add_argument("--out", default=None, help="run folder (default runs/SCENARIO-VEHICLE-seedN)")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="scenario option (repeatable); values are parsed as TOML scalars")
+    p.add_argument("--rerun", default=None, metavar="FILE.rrd",
+                   help="also write a rerun recording (3D scene, poses, thrust, signals); open it with `rotorlab view`")
     return p
 
 
@@ -43,10 +45,23 @@ def run(args) -> int:
     from rotorlab.sim.runner import run_scenario
 
     out = Path(args.out or f"runs/{args.scenario}-{Path(str(args.vehicle)).stem}-seed{args.seed}")
+    rrd = None
+    if args.rerun:
+        from rotorlab.sim.rerun_log import check_rrd_path
+
+        try:
+            rrd = check_rrd_path(args.rerun)  # before the run: a bad path must not cost a simulation
+        except RotorlabError as exc:
+            raise CLIError(str(exc)) from None
     t0 = time.perf_counter()
     try:
         res = run_scenario(args.scenario, args.vehicle, scene=args.scene, gains=args.gains, seed=args.seed,
-                           duration_s=args.duration, out=out, options=_options(args.option), progress=True)
+                           duration_s=args.duration, out=out, options=_options(args.option), progress=True,
+                           record_poses=rrd is not None)
+        if rrd is not None:
+            from rotorlab.sim.rerun_log import record_run
+
+            record_run(res, rrd)
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
     wall = time.perf_counter() - t0
@@ -58,5 +73,5 @@ def run(args) -> int:
         print(f"  {key}: {val}")
     if res.stopped:
         print(f"stopped early: {res.stopped}")
-    print(f"wrote {res.out_dir}")
+    print(f"wrote {res.out_dir}" + (f" and {rrd}" if rrd is not None else ""))
     return 1 if res.stopped else 0

@@ -1,0 +1,153 @@
+"""``rotorlab/Hover-v0``: position hold in free flight as a Gymnasium env.
+
+One agent step = one 50 Hz flight-software tick on the same :class:`~rotorlab.sim.simulator.Simulator` as
+headless runs (free-flight scene, hover keyframe at 5 m).
+
+Actions (float32 Box, shape (4,))
+---------------------------------
+``control='commands'`` (default)
+    ``[collective, roll, pitch, yaw]`` axis commands in % on the flight software's absolute scale (the mixer
+    turns them into rotor commands): collective in [0, 100] %, roll/pitch/yaw within the vehicle's command
+    limit.
+``control='attitude'``
+    ``[collective %, roll set-point deg, pitch set-point deg, heading set-point deg]`` in [0, 100] %,
+    +-``max_tilt_deg`` and +-180 deg; the vehicle's attitude cascade (:class:`FlightSoftware`, its ``gains``)
+    closes the attitude loops.
+
+Out-of-range actions are clipped component-wise to the Box bounds (``info['action_clipped']``); non-finite
+actions raise ``ValueError`` and leave the episode untouched.
+
+Observations (float32 Box, shape (18,), +6 with ``privileged``)
+--------------------------------------------------------------
+``[phi, theta, psi (deg), p, q, r (deg/s), ax, ay, az (m/s^2, body FRD), x, y, z (m, NED), vx, vy, vz (m/s,
+NED), x_ref, y_ref, z_ref (m, NED)]``: IMU attitude estimate, gyro and accelerometer (through the elastic
+mount, seeded noise and bias), the position sensor, and the target. ``privileged`` appends the true airframe
+roll, pitch, yaw (deg) and p, q, r (deg/s). Readings beyond the bounds saturate.
+
+Task and reward
+---------------
+Hold the target, drawn at reset within +-``target_range_m`` of the hover point on each axis (or given with the
+``target_m`` reset option, NED). Per step ``r = -(|position error| / 1 m)^2 - effort_weight e`` with
+``e = ((u_col - u_hover) / 100)^2 + sum((u_axis / limit)^2)``; a crash or a flip terminates with a penalty
+of 100. Reset options: ``randomize``, ``disturbances``, ``target_m``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.scenes import HOVER_HEIGHT_M
+from rotorlab.sim.control.flight_software import FlightSoftware
+from rotorlab.sim.env_base import RotorlabEnv, box, clip_obs
+from rotorlab.sim.runner import resolve_gains
+from rotorlab.sim.simulator import vehicle_mixer
+
+CONTROLS = ("commands", "attitude")
+_MEAS = ("phi", "theta", "psi", "p", "q", "r", "ax", "ay", "az", "x", "y", "z", "vx", "vy", "vz")
+_BOUNDS = (180.0,) * 3 + (1000.0,) * 3 + (100.0,) * 3 + (50.0,) * 3 + (30.0,) * 3 + (50.0,) * 3
+
+
+class HoverEnv(RotorlabEnv):
+    """Free-flight position hold; see the module docstring for spaces, task and reward.
+
+    Parameters
+    ----------
+    vehicle : str, path or VehicleSpec
+    control : {'commands', 'attitude'}
+    gains : str, path or GainSet
+        Attitude cascade of ``attitude`` mode (default the vehicle's ``standard``).
+    target_range_m : float
+        Half-width of the random target box around the hover point, m.
+    max_tilt_deg : float
+        Roll/pitch set-point bound in ``attitude`` mode.
+    **kwargs
+        Common options of :class:`~rotorlab.sim.env_base.RotorlabEnv`.
+    """
+
+    _extra_options = ("target_m",)
+    _episode_attrs = ("_k", "_target", "_fs", "_u", "_hover_col")
+
+    def __init__(self, vehicle="anteos-p2a2", *, control: str = "commands", gains=None, target_range_m: float = 1.0,
+                 max_tilt_deg: float = 30.0, **kwargs):
+        if control not in CONTROLS:
+            raise UnknownNameError("hover control", control, CONTROLS)
+        if not target_range_m >= 0:
+            raise ConfigError(field="target_range_m", expected="a half-width >= 0 m", got=target_range_m)
+        if not 0 < max_tilt_deg < 80:
+            raise ConfigError(field="max_tilt_deg", expected="0 < value < 80 deg", got=max_tilt_deg)
+        super().__init__("free-flight", vehicle, **kwargs)
+        self.control = control
+        self.target_range_m = float(target_range_m)
+        v = self.base_vehicle
+        self.u_limit_pct = float(v.command_limit_pct)
+        lim = self.u_limit_pct
+        if control == "commands":
+            self.action_space = box([0.0, -lim, -lim, -lim], [100.0, lim, lim, lim])
+        else:
+            self.action_space = box([0.0, -max_tilt_deg, -max_tilt_deg, -180.0], [100.0, max_tilt_deg, max_tilt_deg, 180.0])
+        hi = list(_BOUNDS) + ([180.0] * 3 + [1000.0] * 3 if self.privileged else [])
+        self.observation_space = box([-x for x in hi], hi)
+        self.gains = resolve_gains(v, gains)
+        self._fs = FlightSoftware(self.gains, vehicle_mixer(v), dt=self.control_dt_s, mode="cascade",
+                                  u_limit_pct=lim)
+        self._target = np.array([0.0, 0.0, -HOVER_HEIGHT_M])
+        self._u = np.zeros(4)
+
+    def _start_episode(self, options: dict) -> None:
+        if "target_m" in options:
+            t = np.asarray(options["target_m"], dtype=float)
+            if t.shape != (3,) or not np.all(np.abs(t) < 50.0) or not t[2] < 0:
+                raise ConfigError(field="target_m", expected="(x, y, z) NED within +-50 m, z < 0 (above ground)",
+                                  got=options["target_m"])
+            self._target = t
+        else:
+            r = self.target_range_m
+            self._target = np.array([0.0, 0.0, -HOVER_HEIGHT_M]) + self.np_random.uniform(-r, r, 3)
+        self._fs.reset()
+        self._hover_col = self.vehicle.hover_collective_pct  # a property computed from the spec: once per episode
+        self._u = np.array([self._hover_col, 0.0, 0.0, 0.0])
+
+    def _apply(self, action) -> float:
+        sim = self.sim
+        if self.control == "commands":
+            self._u = sim.set_commands(action)
+        else:
+            fs = self._fs
+            fs.set_reference(u_col=action[0], phi_ref=action[1], theta_ref=action[2], psi_ref=action[3])
+            out = fs.step(sim.time, self._meas)
+            sim.set_rotor_commands(out["rotor_pct"])
+            self._u = np.array([out["u_col"], out["u_lat"], out["u_lon"], out["u_yaw"]])
+        u = self._u
+        return float(((u[0] - self._hover_col) / 100.0) ** 2
+                     + np.sum((u[1:] / self.u_limit_pct) ** 2))
+
+    def _position_error(self) -> np.ndarray:
+        p = self.sim.data.xpos[self.sim._airframe]
+        return np.array([p[0], -p[1], -p[2]]) - self._target
+
+    def _reward(self, effort: float) -> float:
+        e = self._position_error()
+        return -float(e @ e) - self.effort_weight * effort
+
+    def _observe(self) -> np.ndarray:
+        self._meas = m = self.sim.measure()
+        obs = [m[k] for k in _MEAS] + list(self._target)
+        if self.privileged:
+            obs += list(self.sim.true_attitude_deg()) + list(self.sim.true_rates_dps())
+        return clip_obs(self.observation_space, obs)
+
+    def _info(self) -> dict:
+        return {"t": self.sim.time, "target_m": self._target.copy(), "commands_pct": np.array(self._u)}
+
+    def save_state(self):
+        st = super().save_state()
+        st.python["meas"] = dict(self._meas)
+        return st
+
+    def restore_state(self, state) -> None:
+        super().restore_state(state)
+        self._meas = dict(state.python["meas"])
+
+
+__all__ = ["HoverEnv", "CONTROLS"]

@@ -1,0 +1,194 @@
+"""``rotorlab/PitchRig-v0`` and ``rotorlab/RollRig-v0``: the 1-DoF gimbal test-bed as a Gymnasium env.
+
+One agent step = one 50 Hz flight-software tick (20 physics steps at 1 kHz) on the same
+:class:`~rotorlab.sim.simulator.Simulator` as headless runs.
+
+Actions (float32 Box, shape (1,))
+---------------------------------
+``control='command'`` (default)
+    The axis command (pitch or roll control variable) in %, bounded by the vehicle's command limit
+    (+-30 % on the P2-A2).
+``control='inner_loop'``
+    The rate set-point in deg/s (+-``rate_limit_dps``, default 150); the vehicle's inner PID (its ``gains``
+    set, :class:`~rotorlab.sim.control.pid.DiscretePID` with clamping anti-windup) closes the rate loop.
+
+Actions outside the Box are clipped component-wise to its bounds (``info['action_clipped']`` says so);
+non-finite actions raise ``ValueError`` and leave the episode untouched.
+
+Observations (float32 Box; units deg, deg/s, %)
+-----------------------------------------------
+``[angle, rate, set-point, last action]``: the IMU's attitude estimate and gyro rate of the rig axis
+(through the elastic IMU mount, with seeded noise and bias when ``sensor_noise``), the angle set-point, and
+the last applied (clipped) action. With ``privileged=True`` the true airframe angle and rate follow. Bounds:
+angle and set-point +-90 deg, rates +-1000 deg/s (a gyro's range: readings saturate there).
+
+Task and reward
+---------------
+``task='tracking'``: the set-point steps every ``setpoint_period_s`` to a value uniform in
++-``setpoint_max_deg``; ``task='regulation'``: set-point 0, for disturbance rejection (add ``disturbances``).
+Per step ``r = -((angle_true - set-point) / 10 deg)^2 - effort_weight (u / u_limit)^2`` with ``u`` the axis
+command actually sent; reaching the rig stop terminates the episode with a penalty of 100.
+
+Reset options: ``randomize``, ``disturbances``, ``task``, ``setpoint_deg`` (a constant set-point, deg).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.sim.control.pid import DiscretePID
+from rotorlab.sim.env_base import RotorlabEnv, box, clip_obs
+from rotorlab.sim.runner import resolve_gains
+
+CONTROLS = ("command", "inner_loop")
+TASKS = ("tracking", "regulation")
+ANGLE_BOUND_DEG = 90.0
+RATE_BOUND_DPS = 1000.0
+ERROR_SCALE_DEG = 10.0
+_AXIS = {"pitch": ("pitch-rig", 2, "theta", "q", 1), "roll": ("roll-rig", 1, "phi", "p", 0)}
+
+
+class RigEnv(RotorlabEnv):
+    """The pitch or roll test-bed; see the module docstring for spaces, task and reward.
+
+    Parameters
+    ----------
+    axis : {'pitch', 'roll'}
+    vehicle : str, path or VehicleSpec
+    control : {'command', 'inner_loop'}
+    gains : str, path or GainSet
+        Gain set whose inner loop closes the rate loop in ``inner_loop`` mode (default the vehicle's ``standard``).
+    task : {'tracking', 'regulation'}
+    setpoint_max_deg, setpoint_period_s : float
+        Set-point steps of the tracking task.
+    rate_limit_dps : float
+        Rate set-point bound in ``inner_loop`` mode.
+    **kwargs
+        Common options of :class:`~rotorlab.sim.env_base.RotorlabEnv` (``sensor_noise``, ``disturbances``,
+        ``randomize``, ``episode_s``, ``effort_weight``, ``privileged``, ``render_mode``).
+    """
+
+    _extra_options = ("task", "setpoint_deg")
+    _episode_attrs = ("_k", "_setpoints", "_last_action", "_pid", "_hover_col")
+
+    def __init__(self, axis: str = "pitch", vehicle="anteos-p2a2", *, control: str = "command", gains=None,
+                 task: str = "tracking", setpoint_max_deg: float = 10.0, setpoint_period_s: float = 2.0,
+                 rate_limit_dps: float = 150.0, **kwargs):
+        if axis not in _AXIS:
+            raise UnknownNameError("rig axis", axis, _AXIS)
+        if control not in CONTROLS:
+            raise UnknownNameError("rig control", control, CONTROLS)
+        self._check_task(task)
+        if not 0 < setpoint_max_deg < ANGLE_BOUND_DEG:
+            raise ConfigError(field="setpoint_max_deg", expected=f"0 < value < {ANGLE_BOUND_DEG}", got=setpoint_max_deg)
+        if not setpoint_period_s > 0:
+            raise ConfigError(field="setpoint_period_s", expected="a period > 0 s", got=setpoint_period_s)
+        scene, self._cmd_index, self._angle, self._rate, self._true_index = _AXIS[axis]
+        super().__init__(scene, vehicle, **kwargs)
+        self.axis = axis
+        self.control = control
+        self.task = task
+        self.setpoint_max_deg = float(setpoint_max_deg)
+        self.setpoint_period_s = float(setpoint_period_s)
+        self.u_limit_pct = float(self.base_vehicle.command_limit_pct)
+        self.gains = resolve_gains(self.base_vehicle, gains)
+        if control == "command":
+            bound = self.u_limit_pct
+        else:
+            if not rate_limit_dps > 0:
+                raise ConfigError(field="rate_limit_dps", expected="a limit > 0 deg/s", got=rate_limit_dps)
+            bound = float(rate_limit_dps)
+        self.action_space = box([-bound], [bound])
+        lo = [-ANGLE_BOUND_DEG, -RATE_BOUND_DPS, -ANGLE_BOUND_DEG, -bound]
+        if self.privileged:
+            lo += [-ANGLE_BOUND_DEG, -RATE_BOUND_DPS]
+        self.observation_space = box(lo, [-x for x in lo])
+        self._pid = DiscretePID(self.gains[axis].inner, self.control_dt_s, -self.u_limit_pct, self.u_limit_pct)
+        self._setpoints = np.zeros(self.n_steps + 1)
+        self._last_action = 0.0
+        self._meas = None
+
+    @staticmethod
+    def _check_task(task):
+        if task not in TASKS:
+            raise UnknownNameError("rig task", str(task), TASKS)
+
+    # ------------------------------------------------------------------ episode
+    def _start_episode(self, options: dict) -> None:
+        task = options.get("task", self.task)
+        self._check_task(task)
+        n = self.n_steps + 1
+        if "setpoint_deg" in options:
+            sp = float(options["setpoint_deg"])
+            if not abs(sp) < ANGLE_BOUND_DEG:
+                raise ConfigError(field="setpoint_deg", expected=f"|value| < {ANGLE_BOUND_DEG} deg", got=sp)
+            self._setpoints = np.full(n, sp)
+        elif task == "tracking":
+            per = max(1, int(round(self.setpoint_period_s / self.control_dt_s)))
+            levels = self.np_random.uniform(-self.setpoint_max_deg, self.setpoint_max_deg, n // per + 1)
+            self._setpoints = np.repeat(levels, per)[:n]
+        else:
+            self._setpoints = np.zeros(n)
+        self._last_action = 0.0
+        self._pid.reset()
+        self._hover_col = self.vehicle.hover_collective_pct  # a property computed from the spec: once per episode
+
+    # ------------------------------------------------------------------ stepping
+    def _apply(self, action) -> float:
+        a = float(action[0])
+        if self.control == "command":
+            u = a
+        else:
+            u = self._pid.step(a, self._meas[self._rate])
+        cmd = [self._hover_col, 0.0, 0.0, 0.0]
+        cmd[self._cmd_index] = u
+        sim = self.sim
+        # u is already within the command limit (action bounds / PID saturation): mix directly, skipping
+        # set_commands' re-clipping, which costs more than the rest of this method
+        sim.commands_pct = cmd
+        sim.set_rotor_commands(sim.mixer.mix(*cmd))
+        self._last_action = a
+        return (u / self.u_limit_pct) ** 2
+
+    def _setpoint(self) -> float:
+        # past the episode end (an env stepped on after truncation) the last set-point holds
+        return self._setpoints[min(self._k, self.n_steps)]
+
+    def _true(self):
+        # the airframe angle on a 1-DoF rig is the bearing plus the mount hinge (both on the rig axis, signed so
+        # that positive is nose up / right side down): exact and far cheaper than the quaternion conversion
+        s = self.sim
+        m, d = s.model, s.data
+        qa, va = m.jnt_qposadr, m.jnt_dofadr
+        ang = d.qpos[qa[s._bearing]] + d.qpos[qa[s._mount]]
+        rate = d.qvel[va[s._bearing]] + d.qvel[va[s._mount]]
+        return math.degrees(ang), math.degrees(rate)
+
+    def _reward(self, effort: float) -> float:
+        err = (self._true()[0] - self._setpoint()) / ERROR_SCALE_DEG
+        return -(err * err) - self.effort_weight * effort
+
+    def _observe(self) -> np.ndarray:
+        self._meas = m = self.sim.measure()
+        obs = [m[self._angle], m[self._rate], self._setpoint(), self._last_action]
+        if self.privileged:
+            obs += list(self._true())
+        return clip_obs(self.observation_space, obs)
+
+    def _info(self) -> dict:
+        return {"t": self.sim.time, "setpoint_deg": float(self._setpoint())}
+
+    def save_state(self):
+        st = super().save_state()
+        st.python["meas"] = dict(self._meas)
+        return st
+
+    def restore_state(self, state) -> None:
+        super().restore_state(state)
+        self._meas = dict(state.python["meas"])
+
+
+__all__ = ["RigEnv", "CONTROLS", "TASKS"]

@@ -1,0 +1,243 @@
+"""Gymnasium environments: API conformance, seeding, exact save/restore, bad input, randomisation, rendering,
+and the PID baseline as a closed-loop ground truth."""
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import gymnasium as gym  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+
+import rotorlab  # noqa: E402,F401  (registers the envs)
+from rotorlab.errors import UnknownNameError  # noqa: E402
+from rotorlab.sim.disturbances.base import Disturbance  # noqa: E402
+from rotorlab.sim.env_baselines import HoverPIDPolicy, RigPIDPolicy, episode_return  # noqa: E402
+
+
+class TorqueKicks(Disturbance):
+    """Random pitch-torque kicks on the airframe from its own seeded stream: exercises disturbance state in
+    save/restore (its rng and kick level live in the disturbance object)."""
+
+    name = "torque_kicks"
+    columns = {"kick_Nm": "N m"}
+
+    def reset(self, sim, rng):
+        self.rng = rng
+        self.level = 0.0
+
+    def update(self, sim, t):
+        if self.rng.random() < 0.1:
+            self.level = float(self.rng.normal(0.0, 0.5))
+        # world y is the rig's pitch axis (positive nose down)
+        sim.data.xfrc_applied[sim._airframe, 4] = self.level
+
+    def values(self, sim):
+        return {"kick_Nm": self.level}
+
+
+def _quiet(env_id, **kw):
+    kw.setdefault("disable_env_checker", True)
+    return gym.make(env_id, **kw).unwrapped
+
+
+@pytest.mark.parametrize("env_id,kw", [
+    ("rotorlab/PitchRig-v0", {}),
+    ("rotorlab/RollRig-v0", {"control": "inner_loop", "privileged": True}),
+    ("rotorlab/Hover-v0", {}),
+    ("rotorlab/Hover-v0", {"control": "attitude", "privileged": True}),
+])
+def test_check_env_passes(env_id, kw):
+    env = gym.make(env_id, disable_env_checker=True, **kw)
+    with pytest.warns(UserWarning, match="symmetric and normalized"):  # documented physical units, not [-1, 1]
+        check_env(env.unwrapped, skip_render_check=True)
+    assert env.observation_space.dtype == np.float32 and env.action_space.dtype == np.float32
+
+
+def test_make_vec_sync():
+    venv = gym.make_vec("rotorlab/PitchRig-v0", num_envs=2, vectorization_mode="sync")
+    obs, _ = venv.reset(seed=5)
+    assert obs.shape == (2, 4)
+    obs2, rew, term, trunc, _ = venv.step(np.array([[3.0], [-3.0]], dtype=np.float32))
+    assert obs2.shape == (2, 4) and rew.shape == (2,) and not term.any()
+    # the two sub-envs draw different set-points and noise
+    assert obs[0, 2] != obs[1, 2]
+    venv.close()
+
+
+def _rollout(env, actions):
+    return np.array([env.step(a)[0] for a in actions])
+
+
+def test_seeding_is_reproducible():
+    env = _quiet("rotorlab/PitchRig-v0")
+    acts = np.random.default_rng(0).uniform(-10, 10, (30, 1))
+    o1 = env.reset(seed=11)[0]
+    r1 = _rollout(env, acts)
+    o2 = env.reset(seed=11)[0]
+    r2 = _rollout(env, acts)
+    np.testing.assert_array_equal(o1, o2)
+    np.testing.assert_array_equal(r1, r2)
+    env.reset(seed=12)
+    assert not np.array_equal(_rollout(env, acts), r1)
+
+
+@pytest.mark.parametrize("env_id,kw", [
+    ("rotorlab/PitchRig-v0", {"control": "inner_loop", "disturbances": [TorqueKicks()]}),
+    ("rotorlab/Hover-v0", {"control": "attitude"}),
+])
+def test_save_restore_is_exact(env_id, kw):
+    env = _quiet(env_id, **kw)
+    env.reset(seed=3)
+    rng = np.random.default_rng(1)
+    lo, hi = env.action_space.low, env.action_space.high
+    mid = (lo + hi) / 2
+    acts = mid + 0.2 * (hi - lo) * rng.uniform(-0.5, 0.5, (60,) + lo.shape)
+    _rollout(env, acts[:20])
+    snap = env.save_state()
+    first = _rollout(env, acts[20:])
+    env.restore_state(snap)
+    again = _rollout(env, acts[20:])
+    np.testing.assert_array_equal(first, again)
+    # the snapshot is not consumed: restoring twice gives the same continuation again
+    env.restore_state(snap)
+    np.testing.assert_array_equal(_rollout(env, acts[20:]), first)
+
+
+def test_save_restore_is_exact_through_a_rope_pull():
+    rope = pytest.importorskip("rotorlab.sim.disturbances.rope")
+    env = _quiet("rotorlab/PitchRig-v0", task="regulation", disturbances=[rope.RopePull(t_pull_s=0.6, ramp_s=0.3)])
+    env.reset(seed=0)
+    acts = np.full((90, 1), 2.0)
+    _rollout(env, acts[:20])
+    snap = env.save_state()
+    first = _rollout(env, acts[20:])
+    env.restore_state(snap)
+    np.testing.assert_array_equal(_rollout(env, acts[20:]), first)
+    assert np.min(first[:, 0]) < -5.0  # the rope really pulled the nose down in between
+
+
+def test_out_of_range_action_is_clipped_to_bounds():
+    a, b = _quiet("rotorlab/PitchRig-v0"), _quiet("rotorlab/PitchRig-v0")
+    a.reset(seed=2)
+    b.reset(seed=2)
+    lim = float(a.action_space.high[0])
+    oa, _, _, _, ia = a.step([1e6])
+    ob, _, _, _, ib = b.step([lim])
+    np.testing.assert_array_equal(oa, ob)
+    assert ia["action_clipped"] and not ib["action_clipped"]
+    assert oa[3] == pytest.approx(lim)  # the observation reports the applied (clipped) action
+
+
+def test_nan_action_raises_and_leaves_the_episode_intact():
+    a, b = _quiet("rotorlab/PitchRig-v0"), _quiet("rotorlab/PitchRig-v0")
+    a.reset(seed=4)
+    b.reset(seed=4)
+    acts = np.full((10, 1), 4.0)
+    _rollout(a, acts[:5])
+    _rollout(b, acts[:5])
+    with pytest.raises(ValueError, match="not finite"):
+        a.step([np.nan])
+    with pytest.raises(ValueError, match="components"):
+        a.step([1.0, 2.0])
+    np.testing.assert_array_equal(_rollout(a, acts[5:]), _rollout(b, acts[5:]))
+
+
+def test_unknown_reset_option_lists_valid_keys():
+    env = _quiet("rotorlab/PitchRig-v0")
+    with pytest.raises(UnknownNameError, match="setpoint_deg") as ei:
+        env.reset(seed=0, options={"set_point": 3.0})
+    assert "randomize" in str(ei.value) and "set_point" in str(ei.value)
+    with pytest.raises(UnknownNameError, match="mass"):
+        env.reset(seed=0, options={"randomize": {"weight": 0.1}})
+
+
+def test_domain_randomisation_rebuilds_the_model_with_sampled_parameters():
+    env = _quiet("rotorlab/PitchRig-v0", randomize={"mass": 0.2, "inertia": 0.2, "delay_s": (0.04, 0.08)})
+    base = env.base_vehicle
+    masses, delays = set(), set()
+    for s in range(4):
+        env.reset(seed=s)
+        v, m = env.vehicle, env.sim.model
+        assert 0.8 * base.mass_kg <= v.mass_kg <= 1.2 * base.mass_kg
+        # the compiled model carries the sampled airframe mass and the sampled delay line
+        air = m.body("vehicle/airframe").id
+        assert m.body_mass[air] == pytest.approx(v.mass_kg - v.imu.mass_kg)
+        act = m.actuator("vehicle/thrust1").id
+        # the history buffer holds delay/dt + 1 samples (rotorlab.vehicles.build)
+        assert m.actuator_history[act, 0] == round(v.rotor.delay_s[0] / m.opt.timestep) + 1
+        assert 0.04 - 1e-12 <= v.rotor.delay_s[0] <= 0.08 + 1e-12
+        masses.add(v.mass_kg)
+        delays.add(v.rotor.delay_s[0])
+    assert len(masses) == 4 and len(delays) >= 2
+    # same seed -> same draw, served from the cache
+    env.reset(seed=1)
+    sim1 = env.sim
+    env.reset(seed=1)
+    assert env.sim is sim1
+    # options override the make-time spreads; {} turns randomisation off
+    env.reset(seed=0, options={"randomize": {}})
+    assert env.vehicle.mass_kg == base.mass_kg
+
+
+def test_reward_is_the_documented_tracking_error():
+    env = _quiet("rotorlab/PitchRig-v0", sensor_noise=False, effort_weight=0.0)
+    env.reset(seed=0, options={"setpoint_deg": 5.0})
+    _, r, *_ = env.step([0.0])
+    # at rest on the rig (true angle ~0) the error is the whole 5 deg: -(5/10)^2
+    assert r == pytest.approx(-0.25, abs=2e-3)
+
+
+def test_pid_baseline_tracks_the_setpoint_on_the_rig():
+    env = _quiet("rotorlab/PitchRig-v0", sensor_noise=False, episode_s=4.0)
+    pol = RigPIDPolicy(env)
+    obs, _ = env.reset(seed=0, options={"setpoint_deg": 5.0})
+    pol.reset()
+    for _ in range(200):
+        obs, r, term, trunc, _ = env.step(pol(obs))
+    # integral action: no steady-state error after 4 s with the published standard gains
+    assert obs[0] == pytest.approx(5.0, abs=0.1)
+    assert r > -1e-3
+
+
+def test_inner_loop_mode_closes_the_rate_loop():
+    env = _quiet("rotorlab/PitchRig-v0", control="inner_loop", sensor_noise=False, privileged=True)
+    env.reset(seed=0, options={"task": "regulation"})
+    rates = []
+    for _ in range(150):  # 3 s at 5 deg/s: about 11 deg, inside the +-30 deg stops
+        obs, *_ = env.step([5.0])
+        rates.append(obs[5])
+    err = 5.0 - np.array(rates)
+    # the integral drives the true rate to the set-point (published inner gains: kp/ki = 0.4 s, slow tail)
+    assert np.all(np.diff(err[10:]) < 0)
+    assert 0.0 < err[-1] < 0.5
+
+
+def test_pid_baseline_holds_position_in_flight():
+    env = _quiet("rotorlab/Hover-v0", episode_s=6.0)
+    ret, steps, terminated = episode_return(env, HoverPIDPolicy(env), seed=0)
+    assert not terminated and steps == 300
+    obs = env._observe()
+    assert np.linalg.norm(obs[9:12] - obs[15:18]) < 0.2
+
+
+def test_disturbance_from_reset_options():
+    env = _quiet("rotorlab/PitchRig-v0", sensor_noise=False)
+    env.reset(seed=0, options={"task": "regulation"})
+    quiet = _rollout(env, np.zeros((50, 1)))
+    env.reset(seed=0, options={"task": "regulation", "disturbances": [TorqueKicks()]})
+    kicked = _rollout(env, np.zeros((50, 1)))
+    assert np.max(np.abs(kicked[:, 0])) > np.max(np.abs(quiet[:, 0])) + 1.0
+
+
+def test_render_rgb_array_headless():
+    env = _quiet("rotorlab/PitchRig-v0", render_mode="rgb_array")
+    env.reset(seed=0)
+    try:
+        img = env.render()
+    except Exception as exc:  # no usable GL backend on this machine
+        pytest.skip(f"MuJoCo offscreen rendering unavailable with MUJOCO_GL={os.environ.get('MUJOCO_GL')}: {exc}")
+    assert img.shape == (480, 640, 3) and img.dtype == np.uint8
+    assert img.std() > 5.0  # a scene, not a blank frame
+    env.close()
