@@ -250,7 +250,7 @@ class RotorlabEnv(gym.Env):
         sig = mujoco.mjtState.mjSTATE_FULLPHYSICS
         phys = np.empty(mujoco.mj_stateSize(m, sig))
         mujoco.mj_getState(m, d, phys, sig)
-        py = {"sim": {k: getattr(s, k) for k in ("rng", "_gyro_bias", "commands_pct", "wind_world", "seed")},
+        py = {"sim": {k: getattr(s, k) for k in s.python_state_attrs},
               "dist": [dict(dd.__dict__) for dd in s.disturbances],
               "env": {k: getattr(self, k) for k in self._episode_attrs},
               "np_random": self.np_random}

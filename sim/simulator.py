@@ -15,7 +15,7 @@ import numpy as np
 from rotorlab.errors import RotorlabError
 from rotorlab.scenes import PREFIX, Scene, build_scene
 from rotorlab.sim.control.mixer import Mixer
-from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quat
+from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG, euler_deg_from_quat
 
 CONTROL_DT_S = 0.02
 FREE_FLIGHT_TILT_LIMIT_DEG = 80.0
@@ -53,6 +53,9 @@ class Simulator:
     disturbances : sequence
         Objects following :class:`rotorlab.sim.disturbances.base.Disturbance`.
     """
+
+    #: Python-side state a snapshot must keep besides MuJoCo's full physics state (see the gym envs)
+    python_state_attrs = ("rng", "_noise_bias", "commands_pct", "wind_world", "seed")
 
     def __init__(self, scene="pitch-rig", vehicle="anteos-p2a2", *, seed: int = 0, control_dt_s: float = CONTROL_DT_S,
                  sensor_noise: bool = True, disturbances=()):
@@ -97,6 +100,7 @@ class Simulator:
         self._bearing = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
         self._mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
         self._free = self.scene.name == "free-flight"
+        self._gyro_scale = FLU_TO_FRD * RAD2DEG
         self._floor_z = FLOOR_CLEARANCE_M + self.vehicle.body_size_m[2]
         self.wind_world = np.zeros(3)
         self.reset(seed)
@@ -116,7 +120,10 @@ class Simulator:
                 mujoco.mj_initCtrlHistory(m, d, i, None, vals)
         self.rng = np.random.default_rng(self.seed)
         imu = self.vehicle.imu
-        self._gyro_bias = self.rng.normal(0.0, imu.gyro_bias_dps, 3) if self.sensor_noise else np.zeros(3)
+        self._noise_bias = np.zeros(9)
+        if self.sensor_noise:
+            self._noise_bias[0:3] = self.rng.normal(0.0, imu.gyro_bias_dps, 3)
+        self._noise_std = np.repeat([imu.gyro_noise_dps, imu.angle_noise_deg, imu.accel_noise_mps2], 3)
         self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
         self.wind_world[:] = 0.0
         for dist in self.disturbances:
@@ -196,19 +203,16 @@ class Simulator:
         ``phi, theta, psi`` (deg), ``p, q, r`` (deg/s), ``ax, ay, az`` (m/s^2, body FRD), and for outer loops
         ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s, NED) from the position sensor (truth plus noise-free)."""
         sd = self.data.sensordata
-        gyro = sd[self._sens["gyro"]] * RAD2DEG
-        rates = np.array([gyro[0], -gyro[1], -gyro[2]])
-        att = euler_deg_from_quat(sd[self._sens["imu_quat"]])
-        acc = sd[self._sens["accel"]]
-        accel = np.array([acc[0], -acc[1], -acc[2]])
+        # one vector of IMU values in FRD/deg: rates, attitude, specific force
+        imu = np.empty(9)
+        imu[0:3] = sd[self._sens["gyro"]] * self._gyro_scale
+        imu[3:6] = euler_deg_from_quat(sd[self._sens["imu_quat"]])
+        imu[6:9] = sd[self._sens["accel"]] * FLU_TO_FRD
         if self.sensor_noise:
-            imu = self.vehicle.imu
-            rng = self.rng
-            rates = rates + self._gyro_bias + rng.normal(0.0, imu.gyro_noise_dps, 3)
-            att = att + rng.normal(0.0, imu.angle_noise_deg, 3)
-            accel = accel + rng.normal(0.0, imu.accel_noise_mps2, 3)
-        out = {"phi": att[0], "theta": att[1], "psi": att[2], "p": rates[0], "q": rates[1], "r": rates[2],
-               "ax": accel[0], "ay": accel[1], "az": accel[2]}
+            # one draw per tick for all nine channels keeps the stream (and so the log) seed-determined
+            imu += self._noise_bias + self._noise_std * self.rng.standard_normal(9)
+        p, q, r, phi, theta, psi, ax, ay, az = imu.tolist()
+        out = {"phi": phi, "theta": theta, "psi": psi, "p": p, "q": q, "r": r, "ax": ax, "ay": ay, "az": az}
         if self._airframe >= 0:
             pos = self.data.xpos[self._airframe]
             vel = self._airframe_velocity()
