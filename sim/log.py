@@ -6,7 +6,6 @@ Columns are preallocated numpy arrays filled tick by tick, so logging costs a fe
 
 from __future__ import annotations
 
-import json
 import platform
 from pathlib import Path
 
@@ -15,9 +14,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from rotorlab import atomic
-
-UNITS_KEY = b"units"
-META_KEY = b"rotorlab"
+from rotorlab.logformat import TIME_COLUMN, encode_metadata
 
 
 class RunLog:
@@ -32,13 +29,13 @@ class RunLog:
     """
 
     def __init__(self, columns: dict, capacity: int):
-        self.units = {"t": "s", **columns}
+        self.units = {TIME_COLUMN: "s", **columns}
         self._data = {k: np.full(capacity, np.nan) for k in self.units}
         self.n = 0
 
     def append(self, t: float, values: dict) -> None:
         k = self.n
-        self._data["t"][k] = t
+        self._data[TIME_COLUMN][k] = t
         data = self._data
         for name, v in values.items():
             col = data.get(name)
@@ -55,11 +52,7 @@ class RunLog:
 
     def table(self, meta: dict | None = None) -> pa.Table:
         arrays = {k: v[: self.n] for k, v in self._data.items()}
-        tbl = pa.table(arrays)
-        md = {UNITS_KEY: json.dumps(self.units).encode()}
-        if meta:
-            md[META_KEY] = json.dumps(meta, default=str).encode()
-        return tbl.replace_schema_metadata(md)
+        return pa.table(arrays).replace_schema_metadata(encode_metadata(self.units, meta))
 
     def write(self, path, meta: dict | None = None) -> Path:
         """Write the Parquet file atomically."""

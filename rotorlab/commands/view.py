@@ -24,15 +24,13 @@ class _TableLog:
     """The two things :func:`record_run` reads from a log (``units`` and ``log[name]``), over a Parquet table."""
 
     def __init__(self, path: Path):
-        import json
-
         import pyarrow.parquet as pq
 
-        from rotorlab.sim.log import UNITS_KEY
+        from rotorlab.logformat import decode_metadata
 
         tbl = pq.read_table(path)
-        md = tbl.schema.metadata or {}
-        self.units = json.loads(md[UNITS_KEY]) if UNITS_KEY in md else {c: "" for c in tbl.column_names}
+        units, _ = decode_metadata(tbl.schema.metadata)
+        self.units = units or {c: "" for c in tbl.column_names}
         self._cols = {c: tbl.column(c).to_numpy() for c in tbl.column_names}
 
     def __getitem__(self, name):
