@@ -50,7 +50,8 @@ def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
     frame = s.worldbody.add_body(name="airframe")
     frame.mass = v.mass_kg - v.imu.mass_kg
     frame.inertia = list(v.inertia_kgm2)
-    frame.ipos = [0, 0, 0]
+    # the vehicle's CG (airframe + IMU board) is the airframe origin, which the rigs put on the pivot
+    frame.ipos = [-v.imu.mass_kg * x / frame.mass for x in v.imu.offset_m]
     frame.explicitinertial = True
 
     bx, by, bz = v.body_size_m
