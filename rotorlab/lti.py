@@ -230,3 +230,57 @@ def pid2_ss(kp: float, ki: float = 0.0, kd: float = 0.0, tf: float = 0.0, b: flo
     for p in parts[1:]:
         out = ct.parallel(out, p)
     return out
+
+
+def c2d_zoh_delay(sys, dt: float, delay_s: float = 0.0) -> ct.StateSpace:
+    """Exact zero-order-hold discretisation of ``sys`` with an input transport delay ``delay_s`` (s).
+
+    The delay need not be a multiple of ``dt``: with ``delay_s = (d + f) dt``, ``0 <= f < 1``, the held input
+    switches inside the sample interval, giving ``x[k+1] = Phi x[k] + G1 u[k-d-1] + G0 u[k-d]`` with
+    ``G0 = int_0^{(1-f)dt} e^{A s} ds B`` and ``G1 = e^{A(1-f)dt} int_0^{f dt} e^{A s} ds B`` (the modified
+    z-transform; Franklin, Powell & Workman, Digital Control, sec. 4.3.4). python-control has no fractional
+    input delay, hence this function.
+
+    State order: the plant states first (so an initial state of ``sys`` maps onto the first ``n`` states),
+    then ``u[k-d-1]`` (only when ``f > 0``), then the ``d``-sample input shift register.
+    """
+    sys = as_ss(sys)
+    if is_discrete(sys):
+        raise ValueError("c2d_zoh_delay needs a continuous system")
+    if delay_s < 0:
+        raise ValueError(f"delay must be non-negative, got {delay_s} s")
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
+    n, m = B.shape
+    k = delay_s / dt
+    d = int(np.floor(k + 1e-9))
+    f = k - d
+    if f < 1e-9:
+        f = 0.0
+
+    def phi_gamma(tau):
+        M = np.zeros((n + m, n + m))
+        M[:n, :n] = A
+        M[:n, n:] = B
+        E = sla.expm(M * tau)
+        return E[:n, :n], E[:n, n:]
+
+    Phi, _ = phi_gamma(dt)
+    if f == 0.0:
+        Ah, Bh, Ch, Dh = Phi, phi_gamma(dt)[1], C, D
+    else:
+        Pa, G0 = phi_gamma((1.0 - f) * dt)
+        _, Gf = phi_gamma(f * dt)
+        G1 = Pa @ Gf
+        Ah = np.block([[Phi, G1], [np.zeros((m, n + m))]])
+        Bh = np.vstack([G0, np.eye(m)])
+        Ch = np.hstack([C, D])
+        Dh = np.zeros_like(D)
+    if d == 0:
+        return ct.ss(Ah, Bh, Ch, Dh, dt)
+    line = delay_ss(d, dt, m)
+    Al, Bl, Cl = (np.asarray(M, dtype=float) for M in (line.A, line.B, line.C))
+    nh, nl = Ah.shape[0], Al.shape[0]
+    Acl = np.block([[Ah, Bh @ Cl], [np.zeros((nl, nh)), Al]])
+    Bcl = np.vstack([np.zeros((nh, m)), Bl])
+    Ccl = np.hstack([Ch, Dh @ Cl])
+    return ct.ss(Acl, Bcl, Ccl, np.zeros_like(D), dt)

@@ -1,0 +1,201 @@
+"""Model JSON: the interchange format between ``rotorlab ident`` and ``rotorlab tune``.
+
+State-space form (written by :func:`save_model`)::
+
+    {"format": "rotorlab-model", "version": 1, "method": "pbsid", "dt": 0.02, "delay_s": 0.06,
+     "delay_samples": 3, "A": [[...]], "B": [[...]], "C": [[...]], "D": [[...]], "K": [[...]] | null,
+     "settings": {...}, "vaf": [...] | null, "input": ["u_lon"], "output": ["q"], "units": {...}}
+
+Hand-written transfer-function form (read by :func:`load_model`), so published models can be tuned
+directly::
+
+    {"num": [12.517, 36.375], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06}
+
+``dt = 0`` means continuous time. The model is always stored with its delay removed; the delay travels
+next to it in seconds (and in samples for discrete models).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import control as ct
+
+from rotorlab.atomic import write_json
+from rotorlab.errors import ConfigError
+from rotorlab.lti import as_ss, is_discrete
+
+__all__ = ["FORMAT", "VERSION", "save_model", "load_model"]
+
+FORMAT = "rotorlab-model"
+VERSION = 1
+
+
+def _parts(model):
+    """``(sys, delay_s, method, settings, K)`` from an IdentifiedModel, GreyBoxResult, HinfMatchResult or
+    LTI system."""
+    if hasattr(model, "sys") and hasattr(model, "delay") and not callable(model.delay):
+        sys = as_ss(model.sys)
+        dt = float(sys.dt) if is_discrete(sys) else 0.0
+        return sys, model.delay * dt, model.method, dict(model.settings), model.K
+    if hasattr(model, "sys") and hasattr(model, "delay_s") and hasattr(model, "model"):
+        method = "oe" if hasattr(model, "ci95") else "hinf-match"
+        settings = {"structure": model.model.name, "params": dict(model.params)}
+        return as_ss(model.sys), float(model.delay_s), method, settings, None
+    return as_ss(model), 0.0, "", {}, None
+
+
+def save_model(path, model, vaf=None, extra=None, *, delay_s: float | None = None, input=None, output=None,
+               units=None) -> Path:
+    """Write a model JSON atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+    model : IdentifiedModel, GreyBoxResult, HinfMatchResult, control.StateSpace or TransferFunction
+        Delay-free model (the delay is taken from the object, or ``delay_s`` for a bare LTI system).
+    vaf : array_like, optional
+        VAF (%) per output, e.g. on cross-validation data.
+    extra : dict, optional
+        Merged into ``settings`` under ``"extra"`` (JSON-serialisable).
+    input, output : list of str, optional
+        Signal names.
+    units : dict, optional
+        ``{signal: unit}``.
+    """
+    sys, d_s, method, settings, K = _parts(model)
+    if delay_s is not None:
+        d_s = float(delay_s)
+    dt = float(sys.dt) if is_discrete(sys) else 0.0
+    delay_samples = int(round(d_s / dt)) if dt > 0 and abs(d_s / dt - round(d_s / dt)) < 1e-9 else None
+    if extra:
+        settings = {**settings, "extra": extra}
+    doc = {
+        "format": FORMAT,
+        "version": VERSION,
+        "method": method,
+        "dt": dt,
+        "delay_s": float(d_s),
+        "delay_samples": delay_samples,
+        "A": np.asarray(sys.A, float).tolist(),
+        "B": np.asarray(sys.B, float).tolist(),
+        "C": np.asarray(sys.C, float).tolist(),
+        "D": np.asarray(sys.D, float).tolist(),
+        "K": None if K is None else np.asarray(K, float).tolist(),
+        "settings": settings,
+        "vaf": None if vaf is None else np.atleast_1d(np.asarray(vaf, float)).tolist(),
+        "input": list(input) if input is not None else None,
+        "output": list(output) if output is not None else None,
+        "units": dict(units or {}),
+    }
+    return write_json(path, doc)
+
+
+def _matrix(doc, key, file, shape=None):
+    v = doc.get(key)
+    try:
+        M = np.array(v, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError("not a numeric matrix", file=file, field=key, expected="list of lists of numbers",
+                          got=v) from None
+    if M.ndim == 1 and M.size == 0:
+        M = M.reshape(0, 0)
+    if M.ndim != 2:
+        raise ConfigError("not a matrix", file=file, field=key, expected="list of lists of numbers", got=v)
+    if not np.all(np.isfinite(M)):
+        raise ConfigError("non-finite entry", file=file, field=key, expected="finite numbers", got=v)
+    if shape is not None:
+        want = tuple(s if s is not None else M.shape[i] for i, s in enumerate(shape))
+        if M.size == 0 and 0 in want:
+            M = M.reshape(want)
+        if M.shape != want:
+            raise ConfigError("wrong shape", file=file, field=key, expected=f"shape {want}", got=list(M.shape))
+    return M
+
+
+def _number(doc, key, file, default=None, minimum=None):
+    v = doc.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ConfigError("not a number", file=file, field=key, expected="a finite number", got=v)
+    if minimum is not None and v < minimum:
+        raise ConfigError("out of range", file=file, field=key, expected=f">= {minimum}", got=v)
+    return float(v)
+
+
+def load_model(path) -> tuple[ct.StateSpace, float, dict]:
+    """Read a model JSON (state-space or transfer-function form).
+
+    Returns
+    -------
+    sys : control.StateSpace
+        Delay removed; discrete with ``dt`` or continuous (``dt = 0``).
+    delay_s : float
+        Input delay (s).
+    meta : dict
+        The remaining fields (method, settings, vaf, input, output, units, ...).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the field at fault.
+    """
+    path = Path(path)
+    file = str(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError("no such model file", file=file) from None
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})", file=file) from None
+    if not isinstance(doc, dict):
+        raise ConfigError("the top level must be an object", file=file, got=type(doc).__name__)
+    dt = _number(doc, "dt", file, default=0.0, minimum=0.0)
+    delay_s = _number(doc, "delay_s", file, default=0.0, minimum=0.0)
+    if "num" in doc or "den" in doc:
+        num = _vector(doc, "num", file)
+        den = _vector(doc, "den", file)
+        if den[0] == 0:
+            raise ConfigError("leading coefficient is zero", file=file, field="den", expected="non-zero", got=doc["den"])
+        if len(num) > len(den):
+            raise ConfigError("improper transfer function", file=file, field="num",
+                              expected=f"at most {len(den)} coefficients (the length of den)", got=doc["num"])
+        sys = ct.tf2ss(ct.tf(num, den, dt))
+        meta = {k: v for k, v in doc.items() if k not in ("num", "den", "dt", "delay_s")}
+        meta.setdefault("method", "transfer-function")
+    else:
+        fmt = doc.get("format")
+        if fmt != FORMAT:
+            raise ConfigError("unknown model format", file=file, field="format",
+                              expected=f"'{FORMAT}' (or a num/den transfer function)", got=fmt)
+        ver = doc.get("version")
+        if ver != VERSION:
+            raise ConfigError("unsupported version", file=file, field="version", expected=VERSION, got=ver)
+        A = _matrix(doc, "A", file)
+        n = A.shape[0]
+        if A.shape != (n, n):
+            raise ConfigError("not square", file=file, field="A", expected="an n x n matrix", got=list(A.shape))
+        B = _matrix(doc, "B", file, (n, None))
+        C = _matrix(doc, "C", file, (None, n))
+        D = _matrix(doc, "D", file, (C.shape[0], B.shape[1]))
+        sys = ct.ss(A, B, C, D, dt)
+        meta = {k: v for k, v in doc.items() if k not in ("A", "B", "C", "D", "dt", "delay_s")}
+        if doc.get("K") is not None:
+            meta["K"] = _matrix(doc, "K", file, (n, C.shape[0]))
+    if dt > 0:
+        k = delay_s / dt
+        if abs(k - round(k)) > 1e-6:
+            raise ConfigError("delay is not a whole number of samples", file=file, field="delay_s",
+                              expected=f"a multiple of dt = {dt}", got=delay_s)
+    return sys, delay_s, meta
+
+
+def _vector(doc, key, file):
+    v = doc.get(key)
+    if (not isinstance(v, list) or not v
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
+        raise ConfigError("not a list of numbers", file=file, field=key, expected="a non-empty list of finite numbers",
+                          got=v)
+    return [float(x) for x in v]

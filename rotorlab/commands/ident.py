@@ -1,0 +1,138 @@
+"""``rotorlab ident LOG --method ... --input U --output Y --out model.json``: identify a model from a log,
+print its VAF (on cross-validation data when given) and write the model JSON that ``rotorlab tune`` reads."""
+
+from __future__ import annotations
+
+METHODS = ("moesp", "pbsid", "lms-kung", "oe", "hinf-match")
+STRUCTURES = ("rate-tf", "rigid-rig", "pitch")
+
+
+def add_parser(sub):
+    p = sub.add_parser("ident", help="identify a model from a log and write it as JSON",
+                       description=__doc__.splitlines()[0])
+    p.add_argument("log", help="Parquet log (rotorlab format) or CSV with a 't' column")
+    p.add_argument("--method", required=True, choices=METHODS)
+    p.add_argument("--input", required=True, help="input column(s), comma-separated")
+    p.add_argument("--output", required=True, help="output column(s), comma-separated")
+    p.add_argument("--order", type=int, default=4, help="model order (black-box methods; default 4)")
+    p.add_argument("--horizon", type=int, default=40, help="MOESP block rows p (default 40, as published)")
+    p.add_argument("--past", type=int, default=11, help="PBSID past window (default 11, as published)")
+    p.add_argument("--future", type=int, default=7, help="PBSID future window (default 7, as published)")
+    p.add_argument("--taps", type=int, default=100, help="LMS impulse-response taps (default 100)")
+    p.add_argument("--delay", default="0", help="input delay in samples, or 'auto' to estimate it (default 0)")
+    p.add_argument("--max-delay", type=int, default=20, help="largest delay tried by --delay auto (samples)")
+    p.add_argument("--structure", default="rate-tf", choices=STRUCTURES,
+                   help="grey-box structure for oe / hinf-match (default rate-tf: K(s+z)/(s^2+as+b))")
+    cv = p.add_mutually_exclusive_group()
+    cv.add_argument("--cv-log", help="separate cross-validation log")
+    cv.add_argument("--cv-split", type=float, help="fraction of LOG used to identify; the rest cross-validates")
+    p.add_argument("--out", required=True, help="model JSON to write")
+    return p
+
+
+def _structure(name: str):
+    from rotorlab.ident import structures
+
+    return {"rate-tf": structures.rate_tf_structure, "rigid-rig": structures.rigid_rig_structure,
+            "pitch": structures.pitch_structure}[name]()
+
+
+def _identify(args, u, y, dt, delay):
+    """Returns an IdentifiedModel (discrete, delay in samples) and the object to save."""
+    from rotorlab.ident import subspace
+    from rotorlab.ident.model import IdentifiedModel
+    from rotorlab.lti import c2d_zoh
+
+    m = args.method
+    if m == "moesp":
+        model = subspace.moesp(u, y, args.order, args.horizon, dt=dt, delay=delay, instruments="u")
+        return model, model
+    if m == "pbsid":
+        model = subspace.pbsid(u, y, args.order, args.past, args.future, dt=dt, delay=delay)
+        return model, model
+    if m == "lms-kung":
+        from rotorlab.ident.lms import kung, lms_batch
+
+        h, _ = lms_batch(u, y, args.taps, delay=delay)
+        # LMS estimates the delay-free impulse response h[1:]; Kung wants h[0] = D = 0 first
+        import numpy as np
+
+        model = kung(np.concatenate([[0.0], h]), order=args.order, dt=dt, delay=delay)
+        return model, model
+    structure = _structure(args.structure)
+    delay_name = structure.delay
+    if m == "oe":
+        from rotorlab.ident.greybox import oe_fit
+
+        structure = structure.replace(**{delay_name: {"value": delay * dt, "fixed": True}})
+        res = oe_fit(structure, u, y, dt, estimate_x0=True)
+        print(res.summary())
+    else:
+        from rotorlab.ident.hinf_match import hinf_match
+
+        bb = subspace.moesp(u, y, args.order, args.horizon, dt=dt, delay=delay, instruments="u")
+        res = hinf_match(bb, structure, rng=0)
+        print(f"H-inf matching of '{structure.name}' to PI-MOESP n={args.order}: "
+              f"||G_W (G_ns - G_s)||_inf = {res.norm:.4g} at {res.w_peak:.3g} rad/s")
+        for k, v in res.params.items():
+            print(f"  {k:>10s} = {v:.6g}")
+    disc = IdentifiedModel(sys=c2d_zoh(res.sys, dt), delay=delay, method=m, settings={"structure": args.structure})
+    return disc, res
+
+
+def run(args) -> int:
+    import numpy as np
+
+    from rotorlab.cli import CLIError
+    from rotorlab.errors import ConfigError, DataError
+    from rotorlab.ident.logs import check_identifiable, load_log
+    from rotorlab.ident.metrics import simulate, vaf
+    from rotorlab.ident.modelio import save_model
+
+    u_cols = [c.strip() for c in args.input.split(",") if c.strip()]
+    y_cols = [c.strip() for c in args.output.split(",") if c.strip()]
+    try:
+        log = load_log(args.log, columns=u_cols + y_cols)
+        if args.cv_log:
+            id_log, cv_log = log, load_log(args.cv_log, columns=u_cols + y_cols)
+            if abs(cv_log.dt - log.dt) > 1e-9 * log.dt:
+                raise CLIError(f"--cv-log {args.cv_log} has dt = {cv_log.dt} s, the log {log.dt} s")
+        elif args.cv_split is not None:
+            if not 0 < args.cv_split < 1:
+                raise CLIError(f"--cv-split must be in (0, 1), got {args.cv_split}")
+            id_log, cv_log = log.split(args.cv_split)
+        else:
+            id_log, cv_log = log, None
+        u, y = id_log.to_arrays(u_cols, y_cols)
+        dt = id_log.dt
+        if args.method == "moesp" or args.method == "hinf-match":
+            check_identifiable(id_log, u_cols, y_cols, args.order, args.horizon)
+        elif args.method == "pbsid":
+            check_identifiable(id_log, u_cols, y_cols, args.order, args.past, args.future)
+        if args.delay == "auto":
+            from rotorlab.ident.delay import estimate_delay
+
+            delay = estimate_delay(u, y, args.max_delay)
+            print(f"estimated delay: {delay} samples ({delay * dt:.4g} s)")
+        else:
+            try:
+                delay = int(args.delay)
+            except ValueError:
+                raise CLIError(f"--delay must be a whole number of samples or 'auto', got {args.delay!r}") from None
+            if delay < 0:
+                raise CLIError(f"--delay must be >= 0, got {delay}")
+        disc, to_save = _identify(args, u, y, dt, delay)
+        fit = vaf(y, simulate(disc, u, x0="estimate", y=y))
+        print(f"{args.method}: VAF on identification data {', '.join(f'{v:.2f} %' for v in fit)}")
+        score = fit
+        if cv_log is not None:
+            uc, yc = cv_log.to_arrays(u_cols, y_cols)
+            score = vaf(yc, simulate(disc, uc, x0="estimate", y=yc))
+            print(f"{args.method}: VAF on cross-validation data {', '.join(f'{v:.2f} %' for v in score)}")
+    except (DataError, ConfigError, ValueError) as exc:
+        raise CLIError(str(exc)) from exc
+    units = {c: log.units[c] for c in u_cols + y_cols if c in log.units}
+    save_model(args.out, to_save, vaf=np.asarray(score), input=u_cols, output=y_cols, units=units,
+               delay_s=delay * dt, extra={"log": str(args.log), "cv": args.cv_log or args.cv_split})
+    print(f"wrote {args.out}")
+    return 0

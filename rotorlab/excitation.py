@@ -1,0 +1,225 @@
+"""Excitation signals for identification experiments: random-hold PRBS, the published ANTEOS campaign,
+log sweeps, doublets and 3-2-1-1 multisteps, and a spectrum check of how much power lands in a band.
+
+Used by both the simulator (to fly the experiments) and the identification library (to design them), so it
+imports neither; numpy only (scipy.signal for the Welch PSD inside :func:`spectrum_check`).
+All signals are numpy arrays sampled at ``dt`` seconds; random ones take a ``seed`` or a
+``numpy.random.Generator`` ``rng``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rotorlab.errors import ConfigError
+
+__all__ = [
+    "ANTEOS_CAMPAIGN",
+    "prbs",
+    "campaign",
+    "anteos_segments",
+    "sweep",
+    "doublet",
+    "multistep_3211",
+    "spectrum_check",
+    "SpectrumCheck",
+]
+
+#: Published ANTEOS P2-A2 PRBS campaign (000_*.txt, "Identification experiments (3)"): level-hold
+#: (switching) time ranges in s and amplitudes in % of the pitch control variable
+#: (+/-7/9/11 % = +/-0.012/0.015/0.019 rad blade-pitch difference). Three segments were concatenated.
+ANTEOS_CAMPAIGN = {
+    "hold_ranges_s": ((0.05, 0.1), (0.1, 0.2), (0.2, 0.4), (0.4, 0.8)),
+    "amplitudes_pct": (7.0, 9.0, 11.0),
+    "segments_concatenated": 3,
+    "band_rad_s": (4.0, 8.0),
+    "dt_s": 0.02,
+}
+
+
+def _rng(seed=None, rng=None) -> np.random.Generator:
+    if rng is not None and seed is not None:
+        raise ConfigError("pass either seed or rng, not both", field="seed/rng")
+    return rng if rng is not None else np.random.default_rng(seed)
+
+
+def _n_samples(n_samples, duration_s, dt) -> int:
+    if dt <= 0:
+        raise ConfigError("sample time must be positive", field="dt", expected="dt > 0 s", got=dt)
+    if (n_samples is None) == (duration_s is None):
+        raise ConfigError("give exactly one of n_samples and duration_s", field="n_samples/duration_s")
+    n = int(n_samples) if n_samples is not None else int(round(duration_s / dt))
+    if n < 1:
+        raise ConfigError("signal length must be at least one sample", field="n_samples/duration_s", got=n)
+    return n
+
+
+def prbs(n_samples: int | None = None, dt: float = 0.02, *, duration_s: float | None = None,
+         hold_range_s=(0.05, 0.1), amplitude: float = 7.0, seed=None, rng=None) -> np.ndarray:
+    """Random-hold binary sequence of +/- ``amplitude``.
+
+    Each level is held for a time drawn uniformly in ``hold_range_s`` (s) and rounded to a whole number of
+    samples (at least one), then the sign flips. The first level's sign is random.
+
+    Parameters
+    ----------
+    n_samples, duration_s : give one
+        Length in samples or in s.
+    dt : float
+        Sample time, s.
+    hold_range_s : (float, float)
+        Minimum and maximum hold (switching) time, s.
+    amplitude : float
+        Level, in the unit of the input (the published campaign: % of control variable).
+
+    Returns
+    -------
+    ndarray, shape (n_samples,)
+    """
+    n = _n_samples(n_samples, duration_s, dt)
+    lo, hi = (float(h) for h in hold_range_s)
+    if not 0 < lo <= hi:
+        raise ConfigError("hold range must satisfy 0 < min <= max", field="hold_range_s",
+                          expected="(min_s, max_s)", got=hold_range_s)
+    g = _rng(seed, rng)
+    # Draw enough holds at once: each is at least max(1, lo/dt) samples.
+    min_len = max(1, int(round(lo / dt)))
+    n_holds = n // min_len + 2
+    holds = np.maximum(1, np.rint(g.uniform(lo, hi, n_holds) / dt).astype(int))
+    sign0 = 1.0 if g.random() < 0.5 else -1.0
+    levels = sign0 * amplitude * (-1.0) ** np.arange(n_holds)
+    return np.repeat(levels, holds)[:n]
+
+
+def campaign(segments, dt: float = 0.02, seed=None, rng=None) -> tuple[np.ndarray, np.ndarray]:
+    """Concatenate PRBS segments, as the published identification input (three segments).
+
+    Parameters
+    ----------
+    segments : sequence of (hold_range_s, amplitude, duration_s)
+        One entry per segment.
+    dt : float
+        Sample time, s.
+
+    Returns
+    -------
+    u : ndarray
+        The concatenated signal.
+    boundaries : ndarray of int, shape (len(segments) + 1,)
+        Sample index where each segment starts, then the total length (segment i is
+        ``u[boundaries[i]:boundaries[i + 1]]``).
+    """
+    g = _rng(seed, rng)
+    parts = []
+    for i, seg in enumerate(segments):
+        try:
+            hold, amp, dur = seg
+        except (TypeError, ValueError):
+            raise ConfigError("each segment is (hold_range_s, amplitude, duration_s)", field=f"segments[{i}]",
+                              got=seg) from None
+        parts.append(prbs(dt=dt, duration_s=dur, hold_range_s=hold, amplitude=amp, rng=g))
+    bounds = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(int)
+    return np.concatenate(parts), bounds
+
+
+def anteos_segments(duration_s: float = 50.0, picks=((0, 0), (1, 1), (2, 2))):
+    """Segments for :func:`campaign` from :data:`ANTEOS_CAMPAIGN`: ``picks`` are (hold-range index,
+    amplitude index) pairs, one per segment, each ``duration_s`` long."""
+    c = ANTEOS_CAMPAIGN
+    return [(c["hold_ranges_s"][h], c["amplitudes_pct"][a], duration_s) for h, a in picks]
+
+
+def sweep(duration_s: float, dt: float, f0_hz: float, f1_hz: float, amplitude: float = 1.0) -> np.ndarray:
+    """Logarithmic chirp from ``f0_hz`` to ``f1_hz`` over ``duration_s`` (sine, starts at phase 0)."""
+    n = _n_samples(None, duration_s, dt)
+    if not 0 < f0_hz < f1_hz:
+        raise ConfigError("sweep needs 0 < f0 < f1", field="f0_hz/f1_hz", got=(f0_hz, f1_hz))
+    t = np.arange(n) * dt
+    k = np.log(f1_hz / f0_hz) / duration_s
+    phase = 2 * np.pi * f0_hz * (np.expm1(k * t)) / k
+    return amplitude * np.sin(phase)
+
+
+def _pulses(dt, widths_units, signs, unit_s, amplitude, start_s, duration_s):
+    n = _n_samples(None, duration_s, dt)
+    u = np.zeros(n)
+    k = int(round(start_s / dt))
+    unit = max(1, int(round(unit_s / dt)))
+    for w, sgn in zip(widths_units, signs):
+        u[k: k + w * unit] = sgn * amplitude
+        k += w * unit
+    if k > n:
+        raise ConfigError("the pulse train does not fit in the signal", field="duration_s",
+                          expected=f">= {k * dt:.3f} s", got=duration_s)
+    return u
+
+
+def doublet(dt: float, pulse_s: float, amplitude: float = 1.0, start_s: float = 0.0,
+            duration_s: float | None = None) -> np.ndarray:
+    """+amplitude for ``pulse_s`` then -amplitude for ``pulse_s``, from ``start_s``; zero elsewhere."""
+    duration_s = duration_s if duration_s is not None else start_s + 4 * pulse_s
+    return _pulses(dt, (1, 1), (1, -1), pulse_s, amplitude, start_s, duration_s)
+
+
+def multistep_3211(dt: float, unit_s: float, amplitude: float = 1.0, start_s: float = 0.0,
+                   duration_s: float | None = None) -> np.ndarray:
+    """3-2-1-1 multistep: alternating pulses of 3, 2, 1 and 1 ``unit_s``, from ``start_s``."""
+    duration_s = duration_s if duration_s is not None else start_s + 10 * unit_s
+    return _pulses(dt, (3, 2, 1, 1), (1, -1, 1, -1), unit_s, amplitude, start_s, duration_s)
+
+
+@dataclass(frozen=True)
+class SpectrumCheck:
+    """Result of :func:`spectrum_check`.
+
+    Attributes
+    ----------
+    w_rad_s, psd : ndarray
+        One-sided Welch PSD (unit^2 per rad/s) on its frequency grid (rad/s).
+    band_rad_s : (float, float)
+    band_fraction : float
+        Fraction of the signal power (mean removed) inside the band.
+    band_min_db : float
+        Lowest PSD inside the band relative to the PSD peak, dB.
+    excited : bool
+        Band PSD nowhere more than ``max_drop_db`` below the peak and at least ``min_fraction`` of power in it.
+    """
+
+    w_rad_s: np.ndarray
+    psd: np.ndarray
+    band_rad_s: tuple
+    band_fraction: float
+    band_min_db: float
+    excited: bool
+
+
+def spectrum_check(u, dt: float, band_rad_s=(4.0, 8.0), nperseg: int | None = None,
+                   max_drop_db: float = 20.0, min_fraction: float = 0.0) -> SpectrumCheck:
+    """Welch PSD of ``u`` and how well the band ``band_rad_s`` (rad/s) is excited.
+
+    ``nperseg`` defaults to the smallest power of two giving at least 8 frequency bins across the band.
+    """
+    from scipy.signal import welch
+
+    u = np.asarray(u, dtype=float).ravel()
+    lo, hi = band_rad_s
+    if not 0 <= lo < hi:
+        raise ConfigError("band must satisfy 0 <= low < high", field="band_rad_s", got=band_rad_s)
+    if hi > np.pi / dt:
+        raise ConfigError("band reaches beyond the Nyquist frequency", field="band_rad_s",
+                          expected=f"high <= {np.pi / dt:.1f} rad/s", got=band_rad_s)
+    if nperseg is None:
+        need = 8 * 2 * np.pi / (dt * (hi - lo))
+        nperseg = int(min(2 ** np.ceil(np.log2(need)), len(u)))
+    f, P = welch(u - u.mean(), fs=1.0 / dt, nperseg=nperseg)
+    w = 2 * np.pi * f
+    P = P / (2 * np.pi)
+    inband = (w >= lo) & (w <= hi)
+    total = np.trapezoid(P, w)
+    frac = float(np.trapezoid(P[inband], w[inband]) / total) if total > 0 and inband.sum() > 1 else 0.0
+    peak = P.max()
+    band_min_db = float(10 * np.log10(P[inband].min() / peak)) if peak > 0 and inband.any() else -np.inf
+    excited = bool(band_min_db >= -max_drop_db and frac >= min_fraction)
+    return SpectrumCheck(w, P, (lo, hi), frac, band_min_db, excited)

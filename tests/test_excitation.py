@@ -1,0 +1,86 @@
+"""Excitation signals: PRBS hold statistics, the published campaign, sweeps and pulse trains, band check."""
+
+import numpy as np
+import pytest
+
+from rotorlab.errors import ConfigError
+from rotorlab.excitation import (ANTEOS_CAMPAIGN, anteos_segments, campaign, doublet, multistep_3211, prbs,
+                                 spectrum_check, sweep)
+
+DT = 0.02
+
+
+def _holds(u):
+    edges = np.flatnonzero(np.diff(u) != 0) + 1
+    return np.diff(edges)  # complete holds only (first and last may be cut)
+
+
+def test_prbs_levels_and_hold_times():
+    u = prbs(20000, DT, hold_range_s=(0.1, 0.2), amplitude=9.0, seed=1)
+    assert set(np.unique(u)) == {-9.0, 9.0}
+    h = _holds(u) * DT
+    assert h.min() >= 0.1 - 1e-9 and h.max() <= 0.2 + 1e-9
+    # uniform on 0.1..0.2 s quantised to 20 ms: mean 0.15 s
+    assert abs(h.mean() - 0.15) < 0.005
+    assert np.all(np.diff(np.sign(u[np.r_[0, np.flatnonzero(np.diff(u)) + 1]])) != 0)  # levels alternate
+
+
+def test_prbs_seeded_and_duration():
+    a = prbs(dt=DT, duration_s=10.0, seed=3)
+    b = prbs(dt=DT, duration_s=10.0, rng=np.random.default_rng(3))
+    assert len(a) == 500 and np.array_equal(a, b)
+    assert not np.array_equal(a, prbs(dt=DT, duration_s=10.0, seed=4))
+
+
+def test_campaign_concatenates_segments():
+    segs = anteos_segments(duration_s=20.0)
+    assert [s[1] for s in segs] == list(ANTEOS_CAMPAIGN["amplitudes_pct"])
+    u, bounds = campaign(segs, DT, seed=0)
+    assert list(bounds) == [0, 1000, 2000, 3000] and len(u) == 3000
+    for (hold, amp, _), a, b in zip(segs, bounds[:-1], bounds[1:]):
+        assert set(np.unique(u[a:b])) == {-amp, amp}
+
+
+def test_published_prbs_excites_4_to_8_rad_s():
+    u, _ = campaign([((0.05, 0.1), 7.0, 60.0), ((0.1, 0.2), 7.0, 60.0), ((0.2, 0.4), 7.0, 60.0)], DT, seed=5)
+    chk = spectrum_check(u, DT, band_rad_s=(4.0, 8.0))
+    assert chk.excited  # band PSD nowhere 20 dB below the peak
+    # a slow square wave (period 8 s, harmonics at 0.785, 2.36, 3.93, 5.50, ... rad/s) leaves gaps
+    slow = np.sign(np.sin(2 * np.pi * np.arange(9000) * DT / 8.0))
+    assert not spectrum_check(slow, DT, band_rad_s=(4.0, 8.0)).excited
+
+
+def test_band_fraction_of_a_sine():
+    t = np.arange(20000) * DT
+    assert spectrum_check(np.sin(6.0 * t), DT, (4.0, 8.0)).band_fraction > 0.95
+    assert spectrum_check(np.sin(20.0 * t), DT, (4.0, 8.0)).band_fraction < 0.01
+
+
+def test_sweep_instantaneous_frequency():
+    dt = 0.001
+    u = sweep(20.0, dt, 0.5, 5.0)
+    z = np.flatnonzero(np.diff(np.signbit(u)))
+    # one period between every other zero crossing; a log sweep has f(t) = f0 (f1/f0)^(t/T)
+    for a, b in ((z[0], z[2]), (z[-3], z[-1])):
+        f_meas = 1.0 / ((b - a) * dt)
+        f_true = 0.5 * 10 ** (0.5 * (a + b) * dt / 20.0)
+        assert abs(f_meas / f_true - 1) < 0.02
+
+
+def test_doublet_and_3211():
+    d = doublet(0.1, 0.5, 2.0, start_s=1.0, duration_s=3.0)
+    assert d[10:15].tolist() == [2.0] * 5 and d[15:20].tolist() == [-2.0] * 5 and not d[20:].any()
+    m = multistep_3211(0.1, 0.2, 1.0)
+    assert m.tolist()[:14] == [1.0] * 6 + [-1.0] * 4 + [1.0] * 2 + [-1.0] * 2
+    assert abs(m.sum()) == 2.0
+
+
+def test_bad_arguments():
+    with pytest.raises(ConfigError, match="hold_range_s"):
+        prbs(100, DT, hold_range_s=(0.2, 0.1))
+    with pytest.raises(ConfigError, match="exactly one"):
+        prbs(100, DT, duration_s=2.0)
+    with pytest.raises(ConfigError, match="Nyquist"):
+        spectrum_check(np.ones(100), DT, (4.0, 400.0))
+    with pytest.raises(ConfigError, match="segments\\[0\\]"):
+        campaign([(0.1, 7.0)], DT)

@@ -1,0 +1,163 @@
+"""Grey-box identification: exact delayed ZOH simulation, the shipped structures against their closed-form
+transfer functions, and output-error fits (open loop and indirect closed loop) recovering known parameters
+with honest 95 % confidence intervals."""
+
+import warnings
+
+import numpy as np
+import control as ct
+import pytest
+
+from rotorlab.ident.greybox import GreyBoxModel, Param, oe_fit, oe_fit_closed_loop, simulate_greybox
+from rotorlab.ident.structures import (pitch_structure, rigid_rig_structure, rigid_rig_tf_coefficients,
+                                       tuhh_axis_structure, tuhh_torque_gain)
+from rotorlab.lti import as_ss, c2d_zoh, c2d_zoh_delay, pid_tf
+
+
+def prbs(N, hold, rng, amp=1.0):
+    return amp * np.repeat(rng.choice([-1.0, 1.0], -(-N // hold)), hold)[:N]
+
+
+def test_c2d_zoh_delay_matches_fine_simulation_with_fractional_delay():
+    G = ct.ss(ct.tf([2.0, 3.0], [1.0, 2.0, 5.0]))
+    dt, delay = 0.02, 0.05  # 2.5 samples
+    u = np.random.default_rng(0).standard_normal(300)
+    y = ct.forced_response(c2d_zoh_delay(G, dt, delay), U=u).outputs
+    # ground truth: the same held input on a 100x finer grid, delayed by exactly 250 fine steps
+    uf = np.concatenate([np.zeros(250), np.repeat(u, 100)[:-250]])
+    yf = ct.forced_response(c2d_zoh(G, dt / 100), U=uf).outputs[::100]
+    np.testing.assert_allclose(y, yf, atol=1e-10)
+
+
+def test_rigid_rig_structure_matches_published_transfer_function_form():
+    m = rigid_rig_structure()
+    th = m.values()
+    c = rigid_rig_tf_coefficients(th)
+    tf = ct.ss2tf(m.ss())
+    num, den = np.squeeze(tf.num[0][0]), np.squeeze(tf.den[0][0])
+    np.testing.assert_allclose(num / den[0], [c["K"], c["K"] * c["z"]], rtol=1e-10)
+    np.testing.assert_allclose(den / den[0], [1.0, c["a"], c["b"]], rtol=1e-10)
+    # the defaults reproduce the published P2-A2 test-bed model 12.517 (s + 2.906)/(s^2 + 5.583 s + 21.3)
+    np.testing.assert_allclose([c["K"], c["z"], c["a"], c["b"]], [12.517, 2.906, 5.583, 21.3], rtol=1e-4)
+
+
+def test_pitch_structure_transfer_function():
+    m = pitch_structure()
+    I, Mq, Mu, J, k, c = (m.values()[n] for n in ("I_yy", "M_q", "M_u", "J", "k", "c"))
+    ref = ct.tf([Mu * c, Mu * k], [I * J, c * (I + J) - J * Mq, k * (I + J) - Mq * c, -Mq * k])
+    w = np.logspace(-1, 2, 30)
+    np.testing.assert_allclose(ct.frequency_response(m.ss(), w).complex.ravel(),
+                               ct.frequency_response(ref, w).complex.ravel(), rtol=1e-9)
+
+
+def test_tuhh_structure_and_torque_gain():
+    K = tuhh_torque_gain("pitch")
+    # hand linearisation of T = C_T rho pi R^4 Omega^2, Omega = 701.2 b^0.8069 - 34.15 at b = 0.6
+    om = 701.2 * 0.6**0.8069 - 34.15
+    dT = 2 * 0.0157 * 1.225 * np.pi * 0.127**4 * om * 701.2 * 0.8069 * 0.6 ** (0.8069 - 1)
+    assert K == pytest.approx(2 * 0.23 * dT, rel=1e-12)
+    m = tuhh_axis_structure("pitch")
+    G = ct.ss2tf(m.ss())
+    ref = ct.tf([K * 26.963], [0.0196, 0.0196 * 26.963, 0, 0])
+    w = np.logspace(-1, 2, 20)
+    np.testing.assert_allclose(ct.frequency_response(G, w).complex.ravel(),
+                               ct.frequency_response(ref, w).complex.ravel(), rtol=1e-9)
+    yaw = tuhh_axis_structure("yaw", outputs=("angle", "rate"))
+    z = ct.zeros(ct.ss2tf(yaw.ss())[0, 0])
+    assert np.allclose(z, [-2.434])  # left-half-plane zero (s + |z|)
+
+
+def test_user_model_and_validation():
+    m = GreyBoxModel("lag", [Param("K", 2.0, 0, 10), Param("tau", 0.1, 1e-3, 1, "s")],
+                     lambda th: ct.ss(ct.tf([th["K"]], [th["tau"], 1])), delay_s=Param("delay_s", 0.03, 0, 1, "s"))
+    assert m.free == ["K", "tau", "delay_s"]
+    assert m.delay_s() == 0.03 and m.replace(delay_s=0.05).delay_s() == 0.05
+    with pytest.raises(ValueError, match="outside its bounds"):
+        Param("J", -1.0, 0.0, 1.0)
+    with pytest.raises(KeyError, match="no parameter"):
+        m.replace(nope=1.0)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_oe_fit_open_loop_pitch_structure_recovers_truth(seed):
+    rng = np.random.default_rng(seed)
+    truth = pitch_structure()
+    dt, N = 0.02, 3000
+    u = prbs(N, 5, rng, 9.0)
+    y = simulate_greybox(truth, u, dt)[:, 0]
+    y = y + 0.05 * y.std() * rng.standard_normal(N)
+    start = {n: 1.3 * truth.values()[n] for n in truth.free}
+    res = oe_fit(truth, u, y, dt, theta0=start)
+    tv = truth.values()
+    for n in truth.free:  # within 4 standard errors: a wrong optimum or a badly understated spread fails
+        assert abs(res.params[n] - tv[n]) <= 4 * res.std[n], res.summary()
+    covered = res.covers(tv)
+    # 5 intervals at 95 %: all covered with probability 0.77; at least 4 with probability 0.98
+    assert sum(covered.values()) >= 4, (covered, res.summary())
+    assert res.fit_vaf[0] > 99.0
+
+
+def test_oe_fit_estimates_initial_state():
+    rng = np.random.default_rng(5)
+    truth = rigid_rig_structure()
+    dt, N = 0.02, 1500
+    u = prbs(N, 6, rng, 5.0)
+    x0 = np.array([30.0, 0.5])
+    y = simulate_greybox(truth, u, dt, x0=x0)[:, 0] + 0.2 * rng.standard_normal(N)
+    res = oe_fit(truth, u, y, dt, theta0={n: 1.2 * truth.values()[n] for n in truth.free}, estimate_x0=True)
+    np.testing.assert_allclose(res.x0, x0, rtol=0.1, atol=0.05)
+    for n in truth.free:
+        assert res.params[n] == pytest.approx(truth.values()[n], rel=0.05)
+
+
+def _pd_loop(P, C, r, v):
+    """Reference loop written out sample by sample: measured angle = plant + noise, fed back to the PD."""
+    A, B, Cm = (np.asarray(M, float) for M in (P.A, P.B, P.C))
+    Ac, Bc, Cc, Dc = (np.asarray(M, float) for M in (C.A, C.B, C.C, C.D))
+    xp, xc = np.zeros(A.shape[0]), np.zeros(Ac.shape[0])
+    Y = np.zeros((len(r), Cm.shape[0]))
+    for k in range(len(r)):
+        Y[k] = Cm @ xp + v[k]
+        e = r[k] - Y[k, 0]
+        u = Cc @ xc + Dc[:, 0] * e
+        xc = Ac @ xc + Bc[:, 0] * e
+        xp = A @ xp + B[:, 0] * u
+    return Y
+
+
+def test_oe_fit_closed_loop_tuhh_pitch_with_pd_controller():
+    dt, N = 0.005, 2500
+    truth = tuhh_axis_structure("pitch")
+    C = as_ss(pid_tf(0.12, 0.0, 0.025, 0.01, dt))
+    P = truth.discretize(dt)  # Td = 0.028 s = 5.6 samples: fractional delay
+    tv = truth.values()
+    covered, n = 0, 0
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        r = prbs(N, 40, rng, 0.2)
+        y0 = _pd_loop(P, C, r, np.zeros((N, 1)))
+        y = _pd_loop(P, C, r, 0.03 * y0.std() * rng.standard_normal((N, 1)))
+        res = oe_fit_closed_loop(truth, C, r, y, dt, theta0=dict(J=0.023, p=22.0, Td=0.024))
+        for name in ("J", "p", "Td"):
+            assert res.params[name] == pytest.approx(tv[name], rel=0.05), res.summary()
+            assert abs(res.params[name] - tv[name]) <= 4 * res.std[name], res.summary()
+        cov = res.covers(tv)
+        covered += sum(cov.values())
+        n += len(cov)
+    # 9 intervals. The HAC covariance accounts for the loop-coloured residual but still runs ~10-25 %
+    # narrow here (p and Td trade off nonlinearly), so ask for 6 of 9 plus every error within 4 std above
+    assert covered >= 6
+
+
+def test_unidentifiable_pair_is_reported():
+    dt, N = 0.005, 800
+    truth = tuhh_axis_structure("pitch")
+    C = as_ss(pid_tf(0.12, 0.0, 0.025, 0.01, dt))
+    r = prbs(N, 40, np.random.default_rng(0), 0.2)
+    y = _pd_loop(truth.discretize(dt), C, r, np.zeros((N, 1)))
+    both = truth.unfix("K").fix("p", "Td")
+    with pytest.warns(UserWarning, match="not identifiable"):
+        res = oe_fit_closed_loop(both, C, r, y, dt)
+    assert not np.isfinite(res.std["J"])
+    # only the ratio K/J is determined by the data
+    assert res.params["K"] / res.params["J"] == pytest.approx(tuhh_torque_gain("pitch") / 0.0196, rel=1e-6)

@@ -1,0 +1,208 @@
+"""Subspace identification (MOESP, PBSID) against known systems: the published P2-A2 pitch model in open and
+closed loop, a random MIMO system, the exact rank structure of noise-free data, and input checking."""
+
+import numpy as np
+import pytest
+import control as ct
+from scipy.signal import lfilter
+
+from rotorlab.errors import DataError
+from rotorlab.excitation import campaign, prbs
+from rotorlab.lti import c2d_zoh
+from rotorlab.ident import IdentifiedModel, moesp, pbsid, nugap, vaf, estimate_delay
+from rotorlab.lti import pid_tf, with_io_delay, as_ss
+from rotorlab.ident.model import lsim_fast
+
+DT = 0.02
+DELAY = 3
+# PBSID test-bed model of the ANTEOS P2-A2 pitch rate, delay removed (000_*.txt)
+P2A2 = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])
+
+
+@pytest.fixture(scope="module")
+def truth():
+    return IdentifiedModel(c2d_zoh(P2A2, DT), delay=DELAY)
+
+
+@pytest.fixture(scope="module")
+def open_loop(truth):
+    """PRBS holds 0.05-0.8 s, amplitude 7 %, 7000 id + 3000 val samples, 5 % output noise."""
+    segs = [((0.05, 0.1), 7.0, 40.0), ((0.1, 0.2), 7.0, 40.0), ((0.2, 0.4), 7.0, 40.0), ((0.4, 0.8), 7.0, 80.0)]
+    u, _ = campaign(segs, DT, seed=2)
+    y0 = truth.simulate(u)[:, 0]
+    y = y0 + 0.05 * y0.std() * np.random.default_rng(1).standard_normal(len(y0))
+    return u, y, y0
+
+
+def _pole_error(model, truth):
+    p = np.sort_complex(np.linalg.eigvals(np.asarray(model.sys.A)))
+    q = np.sort_complex(np.linalg.eigvals(np.asarray(truth.sys.A)))
+    return np.max(np.abs(p - q))
+
+
+@pytest.mark.parametrize("identify", [
+    lambda u, y: moesp(u, y, order=2, horizon=40, dt=DT, delay=DELAY),
+    lambda u, y: moesp(u, y, order=2, horizon=40, dt=DT, delay=DELAY, instruments="u"),
+    lambda u, y: pbsid(u, y, order=2, past=30, future=15, dt=DT, delay=DELAY),
+], ids=["po-moesp", "pi-moesp", "pbsid"])
+def test_open_loop_p2a2_recovered(open_loop, truth, identify):
+    u, y, y0 = open_loop
+    m = identify(u[:7000], y[:7000])
+    assert m.delay == DELAY and m.dt == DT
+    # validation on the last 3000 samples against the noise-free output (simulated from the record start)
+    assert vaf(y0[7000:], m.simulate(u)[7000:, 0])[0] >= 99.9
+    assert _pole_error(m, truth) < 1e-3
+    assert nugap(m.sys, truth.sys) <= 0.002
+
+
+def test_delay_kept_out_of_the_model(open_loop, truth):
+    """Identifying without removing the delay needs extra states and fits worse at the same order."""
+    u, y, y0 = open_loop
+    good = moesp(u[:7000], y[:7000], 2, 40, dt=DT, delay=DELAY)
+    bad = moesp(u[:7000], y[:7000], 2, 40, dt=DT, delay=0)
+    assert good.with_delay().nstates == 2 + DELAY
+    assert vaf(y0[7000:], bad.simulate(u)[7000:, 0])[0] < vaf(y0[7000:], good.simulate(u)[7000:, 0])[0] - 0.5
+
+
+def _closed_loop(truth, seed, dist_scale, kp):
+    """Proportional rate loop around the delayed plant; a coloured (AR(1), pole 0.9) disturbance at the plant
+    input, which the feedback makes correlated with u; the controller sees the noisy measurement."""
+    n = 7000
+    rng = np.random.default_rng(seed)
+    r = prbs(n, DT, hold_range_s=(0.05, 0.8), amplitude=20.0, seed=100 + seed)
+    d = dist_scale * lfilter([1.0], [1.0, -0.9], rng.standard_normal(n))
+    v = 0.3 * rng.standard_normal(n)
+    A, B, C = (np.asarray(M, float) for M in (truth.sys.A, truth.sys.B, truth.sys.C))
+    x = np.zeros(2)
+    u = np.zeros(n)
+    y = np.zeros(n)
+    for k in range(n):
+        y[k] = C[0] @ x + v[k]
+        u[k] = kp * (r[k] - y[k])
+        ud = u[k - DELAY] if k >= DELAY else 0.0
+        x = A @ x + B[:, 0] * (ud + d[k])
+    return u, y, d
+
+
+def _dc_error(model, truth):
+    return float(ct.dcgain(model.sys)) / float(ct.dcgain(truth.sys)) - 1
+
+
+def test_closed_loop_pbsid_consistent(truth):
+    """Moderate coloured disturbance: PBSID (innovation order 3 = two plant states + the disturbance
+    filter) over four independent experiments. The DC gain is the least informed quantity (the
+    disturbance is strongest at low frequency), so its error is checked on average: single experiments
+    range 1-8 %."""
+    uv = prbs(3000, DT, hold_range_s=(0.05, 0.8), amplitude=7.0, seed=9)
+    yv = truth.simulate(uv)[:, 0]
+    dc_err = []
+    for seed in range(4):
+        u, y, d = _closed_loop(truth, seed, dist_scale=0.4, kp=1.0)
+        pb = pbsid(u, y, order=3, past=20, future=10, dt=DT, delay=DELAY)
+        assert vaf(yv, pb.simulate(uv)[:, 0])[0] >= 99.5
+        assert pb.K is not None and pb.noise_cov.shape == (1, 1)
+        dc_err.append(_dc_error(pb, truth))
+    assert np.mean(np.abs(dc_err)) <= 0.05
+
+
+def test_closed_loop_strong_disturbance_biases_moesp_more(truth):
+    """Strong coloured disturbance, weak feedback: open-loop MOESP loses half or more of the DC gain. PBSID
+    is much closer but NOT within 5 % here (it over-estimates the DC gain by 20-45 % in this regime; see
+    the report), so only the comparison is asserted."""
+    for seed in (0, 1):
+        u, y, d = _closed_loop(truth, seed, dist_scale=3.0, kp=0.3)
+        assert abs(np.corrcoef(u, d)[0, 1]) > 0.1  # the disturbance really is correlated with the input
+        mo = moesp(u, y, order=2, horizon=40, dt=DT, delay=DELAY, instruments="u")
+        pb = pbsid(u, y, order=3, past=20, future=10, dt=DT, delay=DELAY)
+        assert _dc_error(mo, truth) < -0.4
+        assert abs(_dc_error(pb, truth)) < abs(_dc_error(mo, truth))
+
+
+def _random_stable(n, m, p, seed, feedthrough):
+    rng = np.random.default_rng(seed)
+    # real and complex poles of modulus 0.5-0.9, rotated into a full A
+    blocks = []
+    for k in range(n // 2):
+        rad, ang = rng.uniform(0.5, 0.9), rng.uniform(0.2, 1.2)
+        blocks.append(rad * np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]]))
+    A = np.zeros((n, n))
+    for k, b in enumerate(blocks):
+        A[2 * k:2 * k + 2, 2 * k:2 * k + 2] = b
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    A = Q @ A @ Q.T
+    B, C = rng.standard_normal((n, m)), rng.standard_normal((p, n))
+    D = rng.standard_normal((p, m)) if feedthrough else np.zeros((p, m))
+    return ct.ss(A, B, C, D, 1.0)
+
+
+@pytest.mark.parametrize("feedthrough", [False, True])
+@pytest.mark.parametrize("method", ["moesp", "pbsid"])
+def test_mimo_recovered(method, feedthrough):
+    G = _random_stable(6, 3, 2, seed=11, feedthrough=feedthrough)
+    rng = np.random.default_rng(12)
+    u = rng.standard_normal((3000, 3))
+    y0 = lsim_fast(*(np.asarray(M, float) for M in (G.A, G.B, G.C, G.D)), u)
+    y = y0 + 0.01 * y0.std(axis=0) * rng.standard_normal(y0.shape)
+    if method == "moesp":
+        m = moesp(u[:2400], y[:2400], 6, 10, feedthrough=feedthrough)
+    else:
+        m = pbsid(u[:2400], y[:2400], 6, 15, 10, feedthrough=feedthrough)
+    assert m.sys.ninputs == 3 and m.sys.noutputs == 2
+    assert np.all(vaf(y0[2400:], m.simulate(u)[2400:]) > 99.0)
+    assert nugap(m.sys, G) < 0.02
+
+
+def test_noise_free_data_has_exactly_n_singular_values():
+    G = c2d_zoh(ct.tf([1.0, 3.0], [1.0, 2.0, 10.0, 4.0]), 0.05)  # third order
+    u = prbs(2000, 0.05, hold_range_s=(0.05, 0.3), amplitude=1.0, seed=3)
+    y = IdentifiedModel(G).simulate(u)
+    m = moesp(u, y, 3, 10, dt=0.05)
+    sv = m.singular_values
+    assert sv[2] / sv[3] > 1e6
+    assert sv[1] / sv[2] < 1e3  # the three real ones are of comparable size
+    assert nugap(m.sys, G) < 1e-6
+
+
+def test_closed_loop_delay_estimate(truth):
+    """Rate PID (standard gains) around the delayed plant, reference PRBS, 5 % measurement noise."""
+    P = with_io_delay(truth.sys, DELAY * DT)
+    C = as_ss(pid_tf(0.257, 0.643, 0.0231, 0.0225, DT))
+    Fs = ct.series(ct.ss([], [], [], [[1.0, -1.0]], DT), ct.feedback(C, P))  # [r, v] -> u
+    Ys = ct.parallel(ct.series(Fs, P), ct.ss([], [], [], [[0.0, 1.0]], DT))  # [r, v] -> measured y
+    n = 7000
+    r = prbs(n, DT, hold_range_s=(0.05, 0.8), amplitude=20.0, seed=4)
+    sim = lambda s, U: lsim_fast(*(np.asarray(M, float) for M in (s.A, s.B, s.C, s.D)), U)[:, 0]
+    y_clean = sim(as_ss(Ys), np.column_stack([r, np.zeros(n)]))
+    v = 0.05 * y_clean.std() * np.random.default_rng(3).standard_normal(n)
+    U = np.column_stack([r, v])
+    assert estimate_delay(sim(as_ss(Fs), U), sim(as_ss(Ys), U), max_delay=8) == DELAY
+
+
+@pytest.mark.parametrize("fn", [
+    lambda u, y: moesp(u, y, 2, 10),
+    lambda u, y: pbsid(u, y, 2, 10, 5),
+], ids=["moesp", "pbsid"])
+def test_bad_input_is_reported(fn):
+    rng = np.random.default_rng(0)
+    u, y = rng.standard_normal(500), rng.standard_normal(500)
+    bad = y.copy()
+    bad[17] = np.nan
+    with pytest.raises(DataError, match="sample 17"):
+        fn(u, bad)
+    with pytest.raises(DataError, match="inf|NaN"):
+        fn(np.where(np.arange(500) == 3, np.inf, u), y)
+    with pytest.raises(DataError, match="500 samples but y has 499"):
+        fn(u, y[:-1])
+    with pytest.raises(DataError, match="constant"):
+        fn(np.ones(500), y)
+    with pytest.raises(DataError, match="at least"):
+        fn(u[:40], y[:40])
+
+
+def test_order_too_large_for_horizon():
+    rng = np.random.default_rng(0)
+    u, y = rng.standard_normal(500), rng.standard_normal(500)
+    with pytest.raises(DataError, match="increase the horizon"):
+        moesp(u, y, order=10, horizon=10)
+    with pytest.raises(DataError, match="future"):
+        pbsid(u, y, order=6, past=10, future=5)
