@@ -128,8 +128,11 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
     on_tick = setup.on_tick
     it = tqdm(range(n_ticks), desc="simulating", unit="tick", disable=not progress, leave=False)
     drive = setup.drive
+    noise_on, noise = setup.noise_on, sim.sensor_noise
     for _ in it:
         t = sim.time
+        if noise_on is not None:
+            sim.sensor_noise = noise and noise_on(t)
         if drive is not None:  # bench tests: the scenario drives the actuators itself, no flight software
             log.append(t, drive(sim, t))
             sim.tick()

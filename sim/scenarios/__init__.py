@@ -63,6 +63,7 @@ class Setup:
     open_loop_axes: tuple = ("roll", "pitch", "yaw")
     extra_columns: dict = dataclasses.field(default_factory=dict)
     on_tick: Callable | None = None
+    noise_on: Callable | None = None  # noise_on(t) -> bool: when the requested IMU noise is on (default always)
     drive: Callable | None = None  # drive(sim, t) -> dict of extra columns; replaces the flight software (bench tests)
     notes: dict = dataclasses.field(default_factory=dict)
 

@@ -64,15 +64,7 @@ def setup(ctx: Context) -> Setup:
         k = np.searchsorted(times, t + 1e-9) - 1
         return {ref_name: float(levels[k]) if k >= 0 else 0.0}
 
-    noise = {}
-
-    def on_tick(sim, out: dict) -> dict:
-        if "on" not in noise:
-            noise["on"] = sim.sensor_noise  # what the run asked for
-        sim.sensor_noise = noise["on"] and sim.time >= quiet_until - 1e-9
-        return {}
-
-    return Setup(mode="cascade", reference=reference, on_tick=on_tick, sensor_noise=True,
+    return Setup(mode="cascade", reference=reference, noise_on=lambda t: t >= quiet_until - 1e-9, sensor_noise=True,
                  notes={"steps": [list(c) for c in changes], "axis": axis, "noise_off_until_s": quiet_until if np.isfinite(quiet_until) else None})
 
 
