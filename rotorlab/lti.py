@@ -70,9 +70,12 @@ def freqresp(sys, omega_rad_s) -> np.ndarray:
     return out
 
 
-def hinfnorm(sys, tol: float = 1e-10) -> tuple[float, float]:
+def hinfnorm(sys) -> tuple[float, float]:
     """Exact H-inf norm and peak frequency (rad/s) of a stable system, by SLICOT ab13dd.
 
+    ab13dd returns a lower bound that meets its tolerance; at a tight tolerance (1e-10) it occasionally
+    stops early (e.g. at the high-frequency gain ``|D|`` of a 2-state system whose peak is 14 % higher),
+    at 1e-8 it does not. Both results are lower bounds of the true norm, so the larger is kept.
     Returns ``(inf, nan)`` for an unstable system, since its H-inf norm is not defined.
     """
     import slycot
@@ -86,11 +89,14 @@ def hinfnorm(sys, tol: float = 1e-10) -> tuple[float, float]:
     dico = "D" if is_discrete(sys) else "C"
     A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
     p, m = D.shape
-    jobe = "I"
     E = np.eye(n)
-    equil = "S"
     jobd = "D" if np.any(D) else "Z"
-    gpeak, fpeak = slycot.ab13dd(dico, jobe, equil, jobd, n, m, p, A, E, B, C, D, tol)
+    best = (-1.0, 0.0)
+    for tol in (1e-10, 1e-8):
+        gpeak, fpeak = slycot.ab13dd(dico, "I", "S", jobd, n, m, p, A, E, B, C, D, tol)
+        if gpeak > best[0]:
+            best = (gpeak, fpeak)
+    gpeak, fpeak = best
     # discrete peaks come back as an angle in rad/sample
     wpk = fpeak / float(sys.dt) if dico == "D" else fpeak
     return float(gpeak), float(wpk)

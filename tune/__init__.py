@@ -1,0 +1,17 @@
+"""Structured H-inf tuning of fixed-structure controllers and of the published attitude cascade."""
+
+from .blocks import PID, PID2, Custom, FixedOrderSS, StaticGain, Structure
+from .hinfstruct import Channel, HinfstructResult, NotStabilisableError, closed_loop, hinfstruct
+from .cascade import PlantModel, cascade_plant, generalised_plant, plant_model
+from .goals import (CrossoverBand, Effort, Margins, Poles, Rejection, Sensitivity, Tracking, evaluate,
+                    format_report, tune_cascade)
+from .spec import Spec, load_spec, parse_spec
+# robustness, margins and TUHH designs (margins() and montecarlo() stay in their modules, so that the
+# submodules rotorlab.tune.margins / rotorlab.tune.montecarlo are not shadowed by same-named functions)
+from .robust import additive_spread, control_sensitivity, fit_wdelta, h_lim
+from .montecarlo import MonteCarloResult, random_delta, single_loop, step_stats
+from .margins import crossover_frequencies, disk_margin
+from .loopshaping import (MixedSensitivityWeights, glover_mcfarlane, hinf_mixed_sensitivity, modified_pid,
+                          tuhh_axis_plant, tuhh_generalized_plant, tuhh_torque_gain)
+from .antiwindup import pid_backcalculation, riccati_antiwindup, simulate_saturated_loop
+from .simc import HalfRuleModel, half_rule, simc_pid

@@ -1,0 +1,80 @@
+"""``rotorlab tune --model model.json --spec SPEC [--start GAINS] --out gains.toml``: tune the attitude
+cascade to a specification and print every goal's value, bound and pass/fail."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def add_parser(sub):
+    p = sub.add_parser("tune", help="structured H-inf tuning of the attitude cascade",
+                       description=__doc__.splitlines()[0])
+    p.add_argument("--model", required=True, action="append",
+                   help="model JSON (as written by 'rotorlab ident', or {num, den, dt, delay_s}); repeat the "
+                        "option to tune on several models at once")
+    p.add_argument("--spec", required=True, help="spec TOML file or built-in name (anteos-p2a2, anteos-a2minib)")
+    p.add_argument("--start", default="standard",
+                   help="start gains: a gains TOML file or a gain-set name of the spec's vehicle (default standard)")
+    p.add_argument("--out", required=True, help="gains TOML to write")
+    p.add_argument("--starts", type=int, default=1, help="number of starts (default 1: the start gains only)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random starts")
+    p.add_argument("--jobs", type=int, default=1, help="processes for the starts")
+    p.add_argument("--max-iter", type=int, default=40, help="outer iterations per start (default 40)")
+    return p
+
+
+def _start_gains(start: str, spec_path):
+    from rotorlab.gains import load_gains
+
+    p = Path(start)
+    if p.suffix == ".toml" or p.exists():
+        return load_gains(p)
+    import tomllib
+
+    from rotorlab.cli import CLIError
+    from rotorlab.errors import UnknownNameError
+    from rotorlab.vehicles import VEHICLES_DIR
+
+    meta = tomllib.loads(Path(spec_path).read_text(encoding="utf-8")).get("meta", {})
+    vehicle = meta.get("vehicle")
+    if not vehicle:
+        raise CLIError(f"--start '{start}' is not a file and the spec names no [meta] vehicle to look it up in")
+    gdir = VEHICLES_DIR / vehicle / "gains"
+    valid = sorted(q.stem for q in gdir.glob("*.toml"))
+    if start not in valid:
+        raise CLIError(str(UnknownNameError(f"gain set of {vehicle}", start, valid)))
+    return load_gains(gdir / f"{start}.toml")
+
+
+def run(args) -> int:
+    from rotorlab.cli import CLIError
+    from rotorlab.errors import RotorlabError
+    from rotorlab.gains import save_gains
+    from rotorlab.ident.modelio import load_model
+    from rotorlab.tune.cascade import PlantModel
+    from rotorlab.tune.goals import format_report, tune_cascade
+    from rotorlab.tune.spec import builtin_specs, load_spec
+
+    try:
+        spec = load_spec(args.spec)
+        spec_path = builtin_specs().get(str(args.spec), args.spec)
+        models = []
+        for path in args.model:
+            sys_, delay_s, meta = load_model(path)
+            models.append(PlantModel(sys_, delay_s, name=Path(path).stem))
+        start = _start_gains(args.start, spec_path)
+        res = tune_cascade(spec, models, start, starts=args.starts, seed=args.seed, n_jobs=args.jobs,
+                           max_iter=args.max_iter, name=Path(args.out).stem)
+    except RotorlabError as exc:
+        raise CLIError(str(exc)) from None
+    except ValueError as exc:
+        raise CLIError(str(exc)) from None
+    save_gains(res.gains, args.out)
+    g = res.gains[spec.axis]
+    print(f"spec {spec.name}: {len(models)} model(s), {len(res.history) - 1} iterations, {res.time_s:.1f} s")
+    print(f"outer PD : kp={g.outer.kp:.4f} kd={g.outer.kd:.4f} tf={g.outer.tf:.4f} b={g.outer.b:.4f} c={g.outer.c:.4f}")
+    print(f"inner PID: kp={g.inner.kp:.4f} ki={g.inner.ki:.4f} kd={g.inner.kd:.4f} tf={g.inner.tf:.4f} "
+          f"b={g.inner.b:.4f} c={g.inner.c:.4f}")
+    print(format_report(res.report))
+    print(f"objective (max soft goal) {res.objective:.4f}; wrote {args.out}")
+    return 0 if all(r.passed for r in res.report if r.hard) else 1

@@ -1,0 +1,169 @@
+"""The published attitude cascade (per axis) as generalised plants for tuning and analysis.
+
+Outer 2-DoF PD on the angle (kp, kd, tf, b, c) -> rate set-point; inner 2-DoF PID on the rate
+(kp, ki, kd, tf, b, c) -> command u [%]; plant G: u [%] -> q [deg/s] with an input delay, theta = q/s [deg].
+Discrete designs build the continuous plant ``[q; theta] = [G; G/s] u``, discretise it with a zero-order
+hold at ``dt`` (so theta is the exactly integrated rate a 50 Hz attitude estimate sees) and append the
+delay as an exact ``z^-k``; continuous designs use a Pade delay. Controllers are the forward-Euler PIDs of
+``rotorlab.lti.pid_tf`` / ``pid2_ss`` (realised in :class:`rotorlab.tune.blocks.PID2`). Saturation is
+ignored in the linear design.
+
+Signals: inputs ``theta_ref``, ``d_u`` (input disturbance / gust at the plant input), ``n_q`` (rate-sensor
+noise), ``n`` (angle-sensor noise); outputs ``theta``, ``q``, ``u`` (plant input = controller command +
+d_u), ``u_ctrl`` (controller command), ``q_ref`` (rate set-point), ``e`` (theta_ref - theta),
+``theta_meas``, ``q_meas``. Loop-opening points: ``u`` (plant input: opens both loops), ``q`` (inner loop
+at the rate measurement, outer loop open, as a cascade inner loop is designed on its own), ``theta`` (outer
+loop at the angle measurement, inner loop closed).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import control as ct
+import numpy as np
+
+from rotorlab import lti
+from rotorlab.errors import UnknownNameError
+from rotorlab.gains import AxisGains, GainSet, LoopGains
+from rotorlab.tune.blocks import PID2, Structure
+
+__all__ = ["PlantModel", "plant_model", "cascade_plant", "generalised_plant", "cascade_structure",
+           "gains_to_theta", "theta_to_gains", "INPUTS", "OUTPUTS", "LOOP_POINTS", "PARAM_NAMES"]
+
+INPUTS = ("theta_ref", "d_u", "n_q", "n")
+OUTPUTS = ("theta", "q", "u", "u_ctrl", "q_ref", "e", "theta_meas", "q_meas")
+# loop point -> (points cut, injection input, signal measured before the cut)
+LOOP_POINTS = {
+    "u": ({"u"}, "d_u", "u_ctrl"),
+    "q": ({"q", "theta"}, "n_q", "q"),
+    "theta": ({"theta"}, "n", "theta"),
+}
+# closed-loop sensitivity at a point: injection -> signal after the injection
+SENSITIVITY = {"u": ("d_u", "u"), "q": ("n_q", "q_meas"), "theta": ("n", "theta_meas")}
+PARAM_NAMES = ("outer.kp", "outer.kd", "outer.tf", "outer.b", "outer.c",
+               "inner.kp", "inner.ki", "inner.kd", "inner.tf", "inner.b", "inner.c")
+
+
+@dataclasses.dataclass
+class PlantModel:
+    """Rate response ``G: u [%] -> q [deg/s]`` (continuous or discrete, delay removed) plus its input delay."""
+
+    G: object
+    delay_s: float = 0.0
+    name: str = "model"
+
+
+def plant_model(num, den, delay_s: float = 0.0, name: str = "model", dt: float = 0.0) -> PlantModel:
+    """PlantModel from transfer-function coefficients (continuous when ``dt == 0``)."""
+    for tag, c in (("num", num), ("den", den)):
+        if not np.all(np.isfinite(np.asarray(c, float))):
+            raise ValueError(f"model '{name}': {tag} contains NaN or Inf")
+    return PlantModel(ct.tf(num, den, dt) if dt else ct.tf(num, den), float(delay_s), name)
+
+
+def cascade_plant(model: PlantModel, dt: float) -> ct.StateSpace:
+    """``u -> [q; theta]`` with the delay, discrete at ``dt`` (ZOH + exact z^-k) or continuous (Pade) if dt == 0."""
+    G = lti.as_ss(model.G)
+    if G.ninputs != 1 or G.noutputs != 1:
+        raise ValueError(f"model '{model.name}' must be SISO u -> q, got {G.noutputs}x{G.ninputs}")
+    if lti.is_discrete(G):
+        G = lti.d2c_zoh(G)  # back to the continuous model it samples, so theta = q/s is integrated exactly
+    A, B, C, D = (np.asarray(M, float) for M in (G.A, G.B, G.C, G.D))
+    if np.any(D):
+        raise ValueError(f"model '{model.name}': G must be strictly proper (a rate response to a command is)")
+    n = A.shape[0]
+    # augment with theta' = q
+    Aa = np.block([[A, np.zeros((n, 1))], [C, np.zeros((1, 1))]])
+    Ba = np.vstack([B, np.zeros((1, 1))])
+    Ca = np.block([[C, np.zeros((1, 1))], [np.zeros((1, n)), np.ones((1, 1))]])
+    Ga = ct.ss(Aa, Ba, Ca, np.zeros((2, 1)))
+    if dt:
+        Ga = lti.c2d_zoh(Ga, dt)
+    return lti.with_io_delay(Ga, model.delay_s)
+
+
+def generalised_plant(Gp: ct.StateSpace, opened=(), inputs=INPUTS, outputs=OUTPUTS):
+    """Generalised plant ``[w; q_ref_c, u_c] -> [z; theta_ref, theta_meas, q_ref, q_meas]`` for the cascade
+    controller of :func:`cascade_structure`, with the loops cut at the points in ``opened``.
+
+    At a cut point the signal downstream is the injection alone; the output of the same name still reports
+    the signal before the cut.
+    """
+    opened = set(opened)
+    A, B, C, D = (np.asarray(M, float) for M in (Gp.A, Gp.B, Gp.C, Gp.D))
+    n = A.shape[0]
+    idx_w = {k: i for i, k in enumerate(INPUTS)}
+    nw, nuc = len(INPUTS), 2
+    # every signal as a row over [x, w, uc] (uc = [q_ref_c, u_c])
+    def row(x=None, w=None, uc=None):
+        r = np.zeros(n + nw + nuc)
+        if x is not None:
+            r[:n] = x
+        for k, v in (w or {}).items():
+            r[n + idx_w[k]] += v
+        for k, v in (uc or {}).items():
+            r[n + nw + k] += v
+        return r
+
+    u_p = row(w={"d_u": 1.0}, uc=({} if "u" in opened else {1: 1.0}))
+    q = row(x=C[0]) + D[0, 0] * u_p
+    th = row(x=C[1]) + D[1, 0] * u_p
+    q_m = (0 * q if "q" in opened else q) + row(w={"n_q": 1.0})
+    th_m = (0 * th if "theta" in opened else th) + row(w={"n": 1.0})
+    sig = {
+        "theta": th, "q": q, "u": u_p, "u_ctrl": row(uc={1: 1.0}), "q_ref": row(uc={0: 1.0}),
+        "e": row(w={"theta_ref": 1.0}) - th, "theta_meas": th_m, "q_meas": q_m,
+        "theta_ref": row(w={"theta_ref": 1.0}),
+    }
+    meas = [sig["theta_ref"], th_m, sig["q_ref"], q_m]
+    wsel = [idx_w[k] for k in inputs] + [nw, nw + 1]
+    Z = np.array([sig[k] for k in outputs] + meas)
+    Cz, Dz = Z[:, :n], Z[:, n:][:, wsel]
+    Bx = B @ u_p[None, n:][:, wsel] if n else np.zeros((0, len(wsel)))
+    return ct.ss(A, Bx, Cz, Dz, Gp.dt)
+
+
+def cascade_structure(dt: float, gains: AxisGains | None = None) -> Structure:
+    """Controller structure: outer 2-DoF PD (inputs theta_ref, theta_meas) and inner 2-DoF PID
+    (inputs q_ref, q_meas), parameters named as in :data:`PARAM_NAMES`."""
+    o = gains.outer if gains else LoopGains(kp=1.0, kd=0.1, tf=0.05)
+    i = gains.inner if gains else LoopGains(kp=0.3, ki=1.0, kd=0.01, tf=0.05)
+    outer = PID2(o.kp, 0.0, o.kd, o.tf if o.kd else max(o.tf, dt), o.b, o.c, dt, name="outer", integral=False)
+    inner = PID2(i.kp, i.ki, i.kd, i.tf if i.kd else max(i.tf, dt), i.b, i.c, dt, name="inner")
+    # the realisation needs tf > dt/2 whenever a derivative state exists; fixed gains below it are invalid
+    return Structure([outer, inner])
+
+
+def gains_to_theta(S: Structure, gains: AxisGains) -> np.ndarray:
+    th = S.values
+    for loop, lg in (("outer", gains.outer), ("inner", gains.inner)):
+        for k in ("kp", "ki", "kd", "tf", "b", "c"):
+            name = f"{loop}.{k}"
+            if name in S.names:
+                th[S.names.index(name)] = getattr(lg, k)
+    return th
+
+
+def theta_to_gains(S: Structure, theta, name: str = "tuned", axis: str = "pitch") -> GainSet:
+    d = dict(zip(S.names, np.asarray(theta, float)))
+
+    def loop(p, outer):
+        return LoopGains(kp=d[f"{p}.kp"], ki=0.0 if outer else d[f"{p}.ki"], kd=d[f"{p}.kd"], tf=d[f"{p}.tf"],
+                         b=d[f"{p}.b"], c=d[f"{p}.c"])
+
+    ax = AxisGains(outer=loop("outer", True), inner=loop("inner", False))
+    return GainSet(name=name, axes={axis: ax} | ({"roll": ax} if axis == "pitch" else {}))
+
+
+def check_point(point: str) -> str:
+    if point not in LOOP_POINTS:
+        raise UnknownNameError("loop point", point, LOOP_POINTS)
+    return point
+
+
+def check_signal(name: str, kind: str) -> str:
+    valid = INPUTS if kind == "input" else OUTPUTS
+    if name not in valid:
+        raise UnknownNameError(f"{kind} signal", name, valid)
+    return name

@@ -1,0 +1,220 @@
+"""Additive-uncertainty robustness: bootstrap envelope ``W_delta``, control sensitivity and the
+robust-stability limit ``h_lim`` (Riccardi, Panizza & Lovera, ref. 000, "Robust stability analysis").
+
+The uncertain family is ``G = G_nom + W_delta Delta`` with ``||Delta||_inf < h``. By the small-gain theorem
+the loop stays stable for every stable ``Delta`` with ``||Delta||_inf < h_lim = 1/||W_delta V_nom||_inf``,
+where ``V_nom`` is the nominal control sensitivity: the transfer from a signal added to the plant output
+(the output of ``W_delta Delta``) to the plant input ``u`` (the input of ``Delta``), with all loops closed.
+
+For a single loop ``u = C (r - y)`` this is ``V = -C/(1 + G C)`` (:func:`control_sensitivity`; the sign
+does not change the norm). For a cascade (outer PD on the angle, inner PID on the rate, as in ref. 000),
+``G`` is the rate plant ``q/u``; the uncertainty adds to ``q`` and therefore also to the angle (its
+integral). Build ``V`` as the closed-loop transfer from that additive signal to ``u`` (e.g. with
+``control.interconnect``, naming the summing junction after the rate plant) and pass it as a StateSpace
+with all closed-loop states, so that :func:`h_lim` can check internal stability.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.optimize as sopt
+import control as ct
+
+from rotorlab import lti
+from rotorlab.errors import DataError
+
+__all__ = ["fit_wdelta", "additive_spread", "control_sensitivity", "h_lim"]
+
+
+def _finite_ss(sys, what: str) -> ct.StateSpace:
+    if not isinstance(sys, (ct.StateSpace, ct.TransferFunction)):
+        raise DataError(f"{what} must be a control.StateSpace or TransferFunction; got {type(sys).__name__}")
+    ss = lti.as_ss(sys)
+    for M in (ss.A, ss.B, ss.C, ss.D):
+        if not np.all(np.isfinite(np.asarray(M, dtype=float))):
+            raise DataError(f"{what} contains NaN or inf entries")
+    return ss
+
+
+def _same_domain(a, b, what: str) -> None:
+    da, db = lti.is_discrete(a), lti.is_discrete(b)
+    if da != db or (da and not math.isclose(float(a.dt), float(b.dt))):
+        raise DataError(f"{what}: models must share the time domain; got dt={a.dt} and dt={b.dt}")
+
+
+def additive_spread(G_nom, G_reps, w) -> np.ndarray:
+    """``max_i sigma_max(G_i(jw) - G_nom(jw))`` over the replicas, on the grid ``w`` (rad/s).
+
+    ``G_reps`` is a sequence of LTI models (same shape and time domain as ``G_nom``). Discrete models are
+    evaluated at ``exp(j w dt)``.
+    """
+    G_nom = _finite_ss(G_nom, "G_nom")
+    w = np.asarray(w, dtype=float).ravel()
+    if len(G_reps) == 0:
+        raise DataError("G_reps is empty; fit_wdelta needs at least one bootstrap replica")
+    Hn = lti.freqresp(G_nom, w)
+    spread = np.zeros(w.size)
+    for i, Gi in enumerate(G_reps):
+        Gi = _finite_ss(Gi, f"G_reps[{i}]")
+        _same_domain(G_nom, Gi, f"G_reps[{i}]")
+        if (Gi.noutputs, Gi.ninputs) != (G_nom.noutputs, G_nom.ninputs):
+            raise DataError(f"G_reps[{i}] is {Gi.noutputs}x{Gi.ninputs}; expected the shape of G_nom "
+                            f"{G_nom.noutputs}x{G_nom.ninputs}")
+        dH = lti.freqresp(Gi, w) - Hn
+        spread = np.maximum(spread, np.linalg.norm(dH, ord=2, axis=(1, 2)))
+    return spread
+
+
+def _sections(theta, order):
+    """Roots (rad/s, open LHP) from the unconstrained parameters: one real root when ``order`` is odd,
+    then ``order // 2`` second-order sections ``s^2 + 2 zeta wn s + wn^2`` with ``wn = e^a``, ``zeta = e^b``
+    (zeta > 1 covers two real roots), so every candidate is stable and minimum phase by construction."""
+    roots = []
+    i = 0
+    if order % 2:
+        roots.append(-math.exp(theta[0]))
+        i = 1
+    for _ in range(order // 2):
+        wn, zeta = math.exp(theta[i]), math.exp(theta[i + 1])
+        disc = np.sqrt(complex(zeta * zeta - 1.0))
+        roots.extend([wn * (-zeta + disc), wn * (-zeta - disc)])
+        i += 2
+    return np.array(roots, dtype=complex)
+
+
+def _params_to_zpk(theta, order):
+    np_ = order  # parameters per polynomial: 1 (odd real root) + 2 per section
+    zeros = _sections(theta[1:1 + np_], order)
+    poles = _sections(theta[1 + np_:1 + 2 * np_], order)
+    return zeros, poles, math.exp(theta[0])
+
+
+def _log_mag(zeros, poles, gain, w, dt):
+    if dt:
+        # matched pole-zero map: stable/min-phase roots in s map inside the unit circle
+        pts = np.exp(1j * w * dt)
+        zr, pr = np.exp(zeros * dt), np.exp(poles * dt)
+        num = np.sum(np.log(np.abs(pts[:, None] - zr[None, :])), axis=1)
+        den = np.sum(np.log(np.abs(pts[:, None] - pr[None, :])), axis=1)
+    else:
+        s = 1j * w
+        num = np.sum(np.log(np.abs(s[:, None] - zeros[None, :])), axis=1)
+        den = np.sum(np.log(np.abs(s[:, None] - poles[None, :])), axis=1)
+    return math.log(gain) + num - den
+
+
+def _zpk_to_ss(zeros, poles, gain, dt):
+    if dt:
+        zr, pr = np.exp(zeros * dt), np.exp(poles * dt)
+    else:
+        zr, pr = zeros, poles
+    num = np.real(np.poly(zr)) * gain
+    den = np.real(np.poly(pr))
+    return lti.as_ss(ct.tf(num, den, dt if dt else 0))
+
+
+def fit_wdelta(G_nom, G_reps, w, order: int = 3, under_weight: float = 10.0) -> ct.StateSpace:
+    """Stable, minimum-phase shaping filter ``W_delta`` of ``order`` whose magnitude bounds the bootstrap
+    spread ``max_i |G_i(jw) - G_nom(jw)|`` at every grid frequency (ref. 000 uses order 3).
+
+    Method: least squares on ``log|W| - log(spread)`` (residuals where ``W`` is below the data weighted by
+    ``under_weight``) with :func:`scipy.optimize.least_squares`, over a parametrisation that is stable and
+    minimum phase by construction (one real root plus second-order sections, each from log-parameters);
+    then the gain is raised by the worst remaining shortfall so ``|W| >= spread`` on the whole grid.
+
+    Parameters
+    ----------
+    G_nom : nominal LTI model (continuous, or discrete with dt in s).
+    G_reps : sequence of replica models (same shape and dt as ``G_nom``), e.g. bootstrap re-estimates.
+    w : frequency grid in rad/s, at least ``order + 1`` points (discrete: below pi/dt).
+    order : filter order (numerator and denominator degree).
+
+    Returns
+    -------
+    control.StateSpace
+        ``W_delta`` with the time domain of ``G_nom``: continuous for continuous models; for discrete
+        models a discrete filter whose poles/zeros are the matched (``z = e^{s dt}``) images of the fitted
+        continuous roots, fitted and checked directly on ``exp(j w dt)``.
+    """
+    if int(order) != order or order < 1:
+        raise DataError(f"order must be a positive whole number; got {order}")
+    order = int(order)
+    w = np.asarray(w, dtype=float).ravel()
+    if w.size < order + 1:
+        raise DataError(f"fit_wdelta needs at least order+1 = {order + 1} frequency points; got {w.size}")
+    if not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise DataError("frequency grid w must be finite and positive (rad/s)")
+    G_nom = _finite_ss(G_nom, "G_nom")
+    dt = float(G_nom.dt) if lti.is_discrete(G_nom) else 0.0
+    if dt and w.max() >= math.pi / dt:
+        raise DataError(f"grid reaches {w.max():.4g} rad/s, at or above the Nyquist frequency {math.pi / dt:.4g} rad/s")
+    spread = additive_spread(G_nom, G_reps, w)
+    if np.any(spread <= 0):
+        raise DataError("the replicas coincide with G_nom at some grid frequency (zero spread); "
+                        "the envelope needs a strictly positive spread; drop those frequencies")
+    target = np.log(spread)
+
+    def resid(theta):
+        e = _log_mag(*_params_to_zpk(theta, order), w, dt) - target
+        return np.where(e < 0, under_weight * e, e)
+
+    lw = np.log(w)
+    best = None
+    # a few deterministic starts with roots spread over the grid: the cost has local minima
+    for frac_z, frac_p in ((0.3, 0.7), (0.7, 0.3), (0.5, 0.5)):
+        th = [float(np.median(target))]
+        for frac in (frac_z, frac_p):
+            if order % 2:
+                th.append(lw.min() + frac * (lw.max() - lw.min()))
+            for k in range(order // 2):
+                th += [lw.min() + (frac + 0.1 * (k + 1)) % 1.0 * (lw.max() - lw.min()), math.log(0.7)]
+        sol = sopt.least_squares(resid, np.array(th), method="trf", max_nfev=400, ftol=1e-6, xtol=1e-6)
+        if best is None or sol.cost < best.cost:
+            best = sol
+    zeros, poles, gain = _params_to_zpk(best.x, order)
+    shortfall = np.max(target - _log_mag(zeros, poles, gain, w, dt))
+    gain *= math.exp(max(shortfall, 0.0)) * (1.0 + 1e-9)
+    return _zpk_to_ss(zeros, poles, gain, dt)
+
+
+def control_sensitivity(G, C) -> ct.StateSpace:
+    """Nominal control sensitivity ``V = -C/(1 + G C)`` of the single loop ``u = C (r - y)``, ``y = G u``:
+    the transfer from a signal added to ``y`` to ``u``. Returned with every closed-loop state (no
+    cancellation), so internal instability stays visible to :func:`h_lim`."""
+    G = _finite_ss(G, "G")
+    C = _finite_ss(C, "C")
+    _same_domain(G, C, "control_sensitivity")
+    if G.ninputs != C.noutputs or G.noutputs != C.ninputs:
+        raise DataError(f"dimension mismatch: G is {G.noutputs}x{G.ninputs}, C is {C.noutputs}x{C.ninputs}; "
+                        "C must map G's outputs to G's inputs")
+    return -ct.feedback(C, G)
+
+
+def h_lim(W_delta, V_nom) -> float:
+    """Robust-stability limit ``h_lim = 1 / ||W_delta V_nom||_inf`` (exact norm, SLICOT ab13dd).
+
+    Parameters
+    ----------
+    W_delta : uncertainty shaping filter (p x m for the plant's p outputs, m inputs; SISO in ref. 000).
+    V_nom : nominal control sensitivity (m x p), with all closed-loop states.
+
+    Raises
+    ------
+    DataError
+        when ``V_nom`` is unstable (the nominal closed loop is not stable, so no ``h`` is robust), on
+        NaN entries, mismatched dimensions or time domains.
+    """
+    W = _finite_ss(W_delta, "W_delta")
+    V = _finite_ss(V_nom, "V_nom")
+    _same_domain(W, V, "h_lim")
+    if W.noutputs != V.ninputs:
+        raise DataError(f"dimension mismatch: W_delta has {W.noutputs} outputs but V_nom has {V.ninputs} inputs")
+    if not lti.is_stable(V):
+        raise DataError(f"the nominal closed loop is unstable (spectral abscissa {lti.spectral_abscissa(V):.4g}); "
+                        "h_lim is only defined for a stabilising controller")
+    if not lti.is_stable(W):
+        raise DataError("W_delta must be stable")
+    g, _ = lti.hinfnorm(ct.series(W, V))
+    return 1.0 / g
