@@ -1,0 +1,43 @@
+"""``rotorlab pipeline --vehicle V [--out DIR] [--quick] [--executor local|dask|dask://HOST:PORT] [--seed N]``:
+twin experiment -> identification -> bootstrap -> tuning -> re-injection -> report, resumable."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(sub):
+    p = sub.add_parser("pipeline", help="run the end-to-end identification + tuning pipeline on a twin (resumable)")
+    p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name (see `rotorlab list`)")
+    p.add_argument("--out", default=None, help="run folder (default runs/pipeline-VEHICLE[-quick]-seedN); "
+                                               "re-running into it resumes, skipping unchanged stages")
+    p.add_argument("--quick", action="store_true", help="short campaign, tiny grids, 50 bootstrap replications")
+    p.add_argument("--tiny", action="store_true", help=argparse.SUPPRESS)  # tests: seconds per stage
+    p.add_argument("--executor", default="local", help="local (process pool, default), serial, dask (local "
+                                                        "cluster) or dask://HOST:PORT (existing scheduler)")
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--n-boot", type=int, default=None, help="bootstrap replications (default 1000, quick 50)")
+    p.add_argument("--n-mc", type=int, default=None, help="Monte Carlo samples per gain set (default 1000)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    return p
+
+
+def run(args) -> int:
+    from rotorlab.cli import CLIError
+    from rotorlab.errors import RotorlabError
+    from rotorlab.pipeline import PipelineOptions, run_pipeline
+
+    level = "tiny" if args.tiny else ("quick" if args.quick else "full")
+    out = Path(args.out or f"runs/pipeline-{args.vehicle}{'' if level == 'full' else '-' + level}-seed{args.seed}")
+    opts = PipelineOptions(vehicle=args.vehicle, out=out, level=level, seed=args.seed, executor=args.executor,
+                           workers=args.workers, progress=not args.no_progress, n_boot=args.n_boot, n_mc=args.n_mc)
+    try:
+        run_pipeline(opts)
+    except RotorlabError as exc:
+        raise CLIError(str(exc)) from None
+    except KeyboardInterrupt:
+        print(f"\ninterrupted: completed stages are kept in {out}; run the same command again to resume")
+        return 130
+    return 0

@@ -1,0 +1,508 @@
+"""The pipeline's report: ``report.md`` and ``report.html`` (same content), PNG figures (matplotlib Agg),
+``summary.json`` (every number in the report), the identified models, the gain sets and, when
+:mod:`rotorlab.sim.rerun_log` is available, rerun recordings of the validation runs.
+
+The headline table answers two questions for a newcomer: do the tuned gains beat the standard ones on the
+twin (and by how much), and do the published claims hold (tuned tracking with less control effort, less
+gust drift, test-bed tuning transferring to flight with small loss)?
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from rotorlab import atomic
+
+__all__ = ["write_report", "flatten_metrics", "compare_sets", "claims"]
+
+PUBLISHED = {
+    "anteos-p2a2": {"moesp_best": "n=4, p=40", "pbsid_best": "n=5, p/f=11/7", "nugap_testbed_flight": 0.0741,
+                    "h_lim": {"standard": {"testbed": 0.370, "flight": 0.114},
+                              "optimal-testbed": {"testbed": 0.600, "flight": 0.189},
+                              "optimal-flight": {"flight": 0.173}}},
+    "anteos-a2minib": {"moesp_best": "n=2, p=39", "vaf_cv": 83.13, "vaf_val": 61.22},
+}
+
+
+def flatten_metrics(m, prefix: str = "") -> dict:
+    """Scenario metrics as one flat ``{"a.b": number}`` dict; a list of dicts (e.g. one per step) becomes the
+    mean of each numeric key under ``"<key>.mean.<name>"``."""
+    out = {}
+    if isinstance(m, dict):
+        for k, v in m.items():
+            out.update(flatten_metrics(v, f"{prefix}{k}."))
+    elif isinstance(m, (list, tuple)) and m and all(isinstance(x, dict) for x in m):
+        rows = [flatten_metrics(x) for x in m]
+        for k in sorted(set().union(*rows)):
+            vals = [r[k] for r in rows if k in r and r[k] is not None]
+            if vals:
+                out[f"{prefix}mean.{k}"] = float(np.mean(vals))
+    elif isinstance(m, bool) or m is None:
+        pass
+    elif isinstance(m, (int, float)) and math.isfinite(m):
+        out[prefix[:-1]] = float(m)
+    return out
+
+
+# metric-name fragments that mean "lower is better", per claim; the first match present in the data is used
+_TRACKING = ("steps.mean.iae", "steps.mean.rise_time_s", "steps.mean.settling_time_s", "iae", "rms_error")
+_EFFORT = ("control.rms", "control.hf_power", "u_rms", "effort")
+_DRIFT = ("peak_deviation", "drift", "max_dev", "iae")
+
+
+def _pick(flat: dict, keys) -> str | None:
+    for k in keys:
+        hits = [name for name in flat if name == k or name.endswith("." + k) or name.endswith(k)]
+        if hits:
+            return sorted(hits, key=len)[0]
+    return None
+
+
+def compare_sets(validation: dict, a: str, b: str) -> dict:
+    """Relative change ``(b - a)/|a|`` in % of every shared metric, per scenario."""
+    out = {}
+    for sc, sets in validation.items():
+        if a in sets and b in sets:
+            fa, fb = sets[a], sets[b]
+            out[sc] = {k: (100.0 * (fb[k] - fa[k]) / abs(fa[k]) if fa[k] else None)
+                       for k in sorted(set(fa) & set(fb)) if isinstance(fa[k], float) and isinstance(fb[k], float)}
+    return out
+
+
+def claims(summary: dict, tuned: str) -> list[dict]:
+    """The published claims checked on the twin, each with the numbers it rests on."""
+    v = summary.get("validation", {})
+    rows = []
+
+    def lower(sc, keys, what):
+        sets = v.get(sc, {})
+        if "standard" not in sets or tuned not in sets:
+            return {"claim": what, "holds": None, "evidence": f"not evaluated: no '{sc}' runs of standard and {tuned}"}
+        k = _pick(sets["standard"], keys)
+        if k is None or k not in sets[tuned]:
+            return {"claim": what, "holds": None, "evidence": f"no suitable metric in '{sc}'"}
+        a, b = abs(sets["standard"][k]), abs(sets[tuned][k])  # deviations may be signed: compare sizes
+        return {"claim": what, "holds": bool(b < a), "metric": f"{sc}: {k}", "standard": a, tuned: b,
+                "change_pct": 100.0 * (b - a) / abs(a) if a else None,
+                "evidence": f"{sc} {k}: standard {a:.4g} -> {tuned} {b:.4g}"}
+
+    rows.append(lower("setpoint", _TRACKING, "tuned gains track set-points at least as well"))
+    rows.append(lower("setpoint", _EFFORT, "tuned gains use less control effort"))
+    rows.append(lower("gust", _DRIFT, "tuned gains drift less under a gust"))
+    tr = summary.get("transfer", {}).get(tuned)
+    if tr:
+        rows.append({"claim": "test-bed tuning transfers to flight with small loss", "holds": bool(tr["loss_pct"] < 25),
+                     "metric": "nominal tracking IAE, flight vs test-bed model", "change_pct": tr["loss_pct"],
+                     "evidence": f"IAE test-bed {tr['iae_testbed']:.4g}, flight {tr['iae_flight']:.4g} "
+                                 f"({tr['loss_pct']:+.1f} %); nu-gap test-bed/flight "
+                                 f"{summary.get('flight', {}).get('nugap_testbed_flight', float('nan')):.4f}"})
+    else:
+        rows.append({"claim": "test-bed tuning transfers to flight with small loss", "holds": None,
+                     "evidence": "not evaluated (no flight model or no tuned gains)"})
+    return rows
+
+
+# ----------------------------------------------------------------------------------------------------------
+# figures
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path) -> str:
+    with atomic.atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=90, format="png", metadata={"Software": None})
+    _plt().close(fig)
+    return f"figures/{path.name}"
+
+
+def _fig_spectrum(ctx, figs: Path):
+    from scipy.signal import welch
+
+    from rotorlab.pipeline import DT_S, _read_log
+
+    log = _read_log(ctx.upstream("experiments") / "id.parquet")
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    for col, lab in (("u_lon", "input u_lon [%]"), ("q", "output q [deg/s]")):
+        f, p = welch(log[col], fs=1 / DT_S, nperseg=512)
+        ax.loglog(2 * np.pi * f[1:], p[1:], label=lab)
+    ax.axvspan(4, 8, color="0.85", label="target band 4-8 rad/s")
+    ax.set_xlabel("frequency [rad/s]"), ax.set_ylabel("PSD"), ax.legend(), ax.set_title("PRBS campaign spectrum")
+    return _save(fig, figs / "prbs_spectrum.png")
+
+
+def _fig_bode(ctx, figs: Path, ident: dict):
+    from rotorlab.ident.modelio import load_model
+    from rotorlab.lti import freqresp
+    from rotorlab.pipeline import load_identified
+
+    plt = _plt()
+    fig, (am, ap) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    rep = ctx.upstream("bootstrap") / "replicas.npz"
+    if rep.exists():
+        z = np.load(rep)
+        w = z["w_rad_s"]
+        am.fill_between(w, z["mag_lo"], z["mag_hi"], color="0.8", label="bootstrap 95 % band")
+        ap.fill_between(w, np.degrees(z["phase_lo"]), np.degrees(z["phase_hi"]), color="0.8")
+    else:
+        w = np.logspace(-1, np.log10(140), 200)
+    mdir = ctx.upstream("identify") / "models"
+    truth, _, _ = load_model(mdir / "truth.json")
+    for name in list(ident["models"]) + ["pbsid-flight", "truth"]:
+        p = mdir / f"{name}.json"
+        if not p.exists():
+            continue
+        sys = truth if name == "truth" else load_identified(p).sys
+        G = freqresp(sys, w)[:, 0, 0]
+        style = dict(color="k", lw=2.2, ls="--") if name == "truth" else {}
+        am.loglog(w, np.abs(G), label=name, **style)
+        ap.semilogx(w, np.degrees(np.unwrap(np.angle(G))), **style)
+    am.set_ylabel("|q/u| [(deg/s)/%]"), ap.set_ylabel("phase [deg]"), ap.set_xlabel("frequency [rad/s]")
+    am.legend(fontsize=7), am.set_title("identified models (delay removed) vs the twin's true model")
+    return _save(fig, figs / "bode.png")
+
+
+def _fig_poles(ctx, figs: Path):
+    from rotorlab.ident.modelio import load_model
+    from rotorlab.lti import d2c_zoh
+
+    rep = ctx.upstream("bootstrap") / "replicas.npz"
+    if not rep.exists():
+        return None
+    z = np.load(rep)
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    pc = z["poles_c"].ravel()
+    ax.plot(pc.real, pc.imag, ".", ms=3, alpha=0.4, label="bootstrap poles")
+    truth, _, _ = load_model(ctx.upstream("identify") / "models" / "truth.json")
+    tp = np.linalg.eigvals(np.asarray(d2c_zoh(truth).A, float))
+    tp = tp[np.abs(tp) < 200]
+    ax.plot(tp.real, tp.imag, "kx", ms=9, mew=2, label="twin truth (|s| < 200)")
+    ax.axvline(0, color="0.5", lw=0.8)
+    ax.set_xlabel("Re s [1/s]"), ax.set_ylabel("Im s [rad/s]"), ax.legend(), ax.set_title("pole clouds")
+    ax.set_xlim(max(-80, ax.get_xlim()[0]), 5), ax.set_ylim(-60, 60)
+    return _save(fig, figs / "poles.png")
+
+
+def _fig_montecarlo(ctx, figs: Path, sets):
+    p = ctx.upstream("tune") / "montecarlo.npz"
+    if not p.exists():
+        return None
+    z = np.load(p)
+    if "t" not in z:
+        return None
+    plt = _plt()
+    fig, axs = plt.subplots(1, 2, figsize=(9, 3.5))
+    for i, name in enumerate(sets):
+        for ax, kind in zip(axs, ("setpoint", "load")):
+            key = f"{name}__{kind}"
+            if key in z:
+                b = z[key]
+                ax.fill_between(z["t"], b[1], b[3], alpha=0.25, color=f"C{i}")
+                ax.plot(z["t"], b[2], color=f"C{i}", label=name)
+    axs[0].set_title("set-point step (5-95 % band, median)"), axs[1].set_title("load (gust) step at the plant input")
+    for ax in axs:
+        ax.set_xlabel("t [s]")
+    axs[0].set_ylabel("theta [deg per deg]"), axs[0].legend(fontsize=7)
+    return _save(fig, figs / "montecarlo.png")
+
+
+def _fig_scenario(ctx, figs: Path, scenario: str, sets, col="theta", ref="theta_ref", fname=None):
+    from rotorlab.pipeline import _read_log
+
+    logs = {s: ctx.upstream("validate") / "logs" / f"{scenario}__{s}.parquet" for s in sets}
+    logs = {s: _read_log(p) for s, p in logs.items() if p.exists()}
+    if not logs:
+        return None
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    for i, (s, lg) in enumerate(logs.items()):
+        a1.plot(lg["t"], lg[col], color=f"C{i}", lw=1, label=s)
+        a2.plot(lg["t"], lg["u_lon"], color=f"C{i}", lw=0.8)
+    first = next(iter(logs.values()))
+    if ref in first and np.any(np.isfinite(first[ref])):
+        a1.plot(first["t"], first[ref], "k--", lw=0.8, label="set-point")
+    a1.set_ylabel(f"{col} [deg]"), a2.set_ylabel("u_lon [%]"), a2.set_xlabel("t [s]"), a1.legend(fontsize=7)
+    a1.set_title(f"validation on the twin: {scenario}")
+    return _save(fig, figs / (fname or f"{scenario}.png"))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# markdown
+
+
+def _f(x, fmt="{:.3g}"):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return fmt.format(x) if isinstance(x, (int, float)) else str(x)
+
+
+def _table(header, rows) -> list[str]:
+    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return out
+
+
+def write_report(ctx) -> dict:
+    """Report stage of :mod:`rotorlab.pipeline`: writes into ``ctx.work`` and returns the summary."""
+    from rotorlab import __version__
+
+    exp, ident, boot = ctx.result("experiments"), ctx.result("identify"), ctx.result("bootstrap")
+    tune, val = ctx.result("tune"), ctx.result("validate")
+    figs = ctx.work / "figures"
+    figs.mkdir()
+    sets = list(tune["gains"])
+    tuned = "tuned" if "tuned" in sets else (next((s for s in sets if s.startswith("optimal")), None))
+    validation = {sc: {s: flatten_metrics(m) for s, m in per.items()} for sc, per in val["validation"].items()}
+    summary = {
+        "vehicle": ctx.vehicle, "seed": ctx.seed, "level": ctx.s["level"], "rotorlab_version": __version__,
+        "experiments": exp, "delay_samples": ident["delay_samples"],
+        "models": {k: {kk: vv for kk, vv in m.items() if kk != "grid"} for k, m in ident["models"].items()},
+        "model_grids": {k: m.get("grid") for k, m in ident["models"].items() if m.get("grid")},
+        "nominal_model": ident["nominal"], "flight": ident.get("flight", {}), "bootstrap": boot,
+        "gains": tune["gains"], "tuning": tune["tuning"], "goals": tune.get("goals"), "h_lim": tune["h_lim"],
+        "h_lim_flight": tune.get("h_lim_flight", {}), "montecarlo": tune["montecarlo"],
+        "transfer": tune.get("transfer", {}), "validation": validation, "compared_set": tuned,
+        "comparison": compare_sets(validation, "standard", tuned) if tuned else {},
+        "skipped": {**{f"identify.{k}": v for k, v in ident.get("skipped", {}).items()},
+                    **{f"validate.{k}": v for k, v in val.get("skipped", {}).items()},
+                    **({"tune.tuning": tune["tuning"]} if tune["tuning"] != "done" else {})},
+        "published": PUBLISHED.get(ctx.vehicle, {}),
+    }
+    summary["claims"] = claims(summary, tuned) if tuned else []
+    fig_paths = {}
+    for key, fn in (("spectrum", lambda: _fig_spectrum(ctx, figs)), ("bode", lambda: _fig_bode(ctx, figs, ident)),
+                    ("poles", lambda: _fig_poles(ctx, figs)), ("montecarlo", lambda: _fig_montecarlo(ctx, figs, sets)),
+                    ("setpoint", lambda: _fig_scenario(ctx, figs, "setpoint", sets)),
+                    ("gust", lambda: _fig_scenario(ctx, figs, "gust", sets)),
+                    ("rope-pull", lambda: _fig_scenario(ctx, figs, "rope-pull", sets)),
+                    ("hover", lambda: _fig_scenario(ctx, figs, "hover", ["standard", tuned] if tuned else sets,
+                                                    fname="standard_vs_tuned_hover.png"))):
+        try:
+            p = fn()
+        except Exception as exc:  # a figure must never sink the report; say which and why
+            summary["skipped"][f"figure.{key}"] = f"skipped: {type(exc).__name__}: {exc}"
+            p = None
+        if p:
+            fig_paths[key] = p
+    summary["figures"] = fig_paths
+    # artefacts next to the report
+    shutil.copytree(ctx.upstream("identify") / "models", ctx.work / "models")
+    shutil.copy2(ctx.upstream("bootstrap") / "w_delta.json", ctx.work / "models" / "w_delta.json")
+    _write_gains(ctx, sets)
+    summary["recordings"] = _recordings(ctx, sets, summary)
+    md = _markdown(summary)
+    atomic.write_text(ctx.work / "report.md", md)
+    atomic.write_text(ctx.work / "report.html", _html(md, ctx.vehicle))
+    atomic.write_json(ctx.work / "summary.json", summary)
+    return {"summary": "summary.json", "report": "report.md", "figures": fig_paths,
+            "claims": [{k: c.get(k) for k in ("claim", "holds")} for c in summary["claims"]]}
+
+
+def _write_gains(ctx, sets):
+    from rotorlab.gains import save_gains
+    from rotorlab.pipeline import _gain_sets
+
+    for name, gs in _gain_sets(ctx.vehicle, ctx.upstream("tune") / "tuned.toml").items():
+        if name in sets:
+            save_gains(gs, ctx.work / "gains" / f"{name}.toml")
+
+
+def _recordings(ctx, sets, summary) -> dict:
+    """Rerun recordings (.rrd) of the validation runs when the rerun logger exists (time series + scene)."""
+    try:
+        from rotorlab.sim.rerun_log import record_run
+    except ImportError as exc:
+        summary["skipped"]["recordings"] = f"skipped: rotorlab.sim.rerun_log.record_run not available ({exc})"
+        return {}
+    from rotorlab.sim.log import RunLog
+
+    from rotorlab.pipeline import _read_log
+
+    out = {}
+    logdir = ctx.upstream("validate") / "logs"
+    paths = sorted(logdir.glob("*.parquet")) if logdir.exists() else []
+    limit = ctx.s.get("record_runs")
+    for p in paths[:limit] if limit is not None else paths:
+        import pyarrow.parquet as pq
+
+        meta = json.loads(pq.read_schema(p).metadata[b"rotorlab"])
+        units = json.loads(pq.read_schema(p).metadata[b"rotorlab.units"])
+        cols = _read_log(p)
+        log = RunLog({k: u for k, u in units.items() if k != "t"}, len(cols["t"]))
+        for i in range(len(cols["t"])):
+            log.append(cols["t"][i], {k: cols[k][i] for k in cols if k != "t"})
+        try:
+            path = record_run(log, ctx.work / "recordings" / f"{p.stem}.rrd", scene=meta["scene"],
+                              vehicle=ctx.vehicle, info=meta)
+            out[p.stem] = f"recordings/{Path(path).name}"
+        except Exception as exc:
+            summary["skipped"][f"recording.{p.stem}"] = f"skipped: {type(exc).__name__}: {exc}"
+    return out
+
+
+def _headline(s) -> list[str]:
+    tuned = s["compared_set"]
+    if not tuned:
+        return ["No gain set other than the standard one to compare."]
+    lines = [f"**Does `{tuned}` beat `standard` on the twin?** (lower is better for every metric below; "
+             "change = (tuned - standard) / |standard|)", ""]
+    rows = []
+    for sc, comp in s["comparison"].items():
+        sets = s["validation"][sc]
+        k_tr, k_ef, k_dr = _pick(sets["standard"], _TRACKING), _pick(sets["standard"], _EFFORT), \
+            _pick(sets["standard"], _DRIFT)
+        for k in dict.fromkeys(x for x in (k_tr, k_ef, k_dr) if x):
+            a, b = sets["standard"].get(k), sets[tuned].get(k)
+            if a is None or b is None:
+                continue
+            a, b = abs(a), abs(b)
+            verdict = "-" if a is None or b is None else (
+                "~same" if abs(b - a) <= 0.005 * abs(a) else ("better" if b < a else "worse"))
+            chg = 100.0 * (b - a) / a if a and b is not None else None
+            rows.append([sc, f"abs {k}", _f(a, "{:.4g}"), _f(b, "{:.4g}"), _f(chg, "{:+.1f} %"), verdict])
+    hv = s["validation"].get("hover", {}).get(tuned, {})
+    for k in ("pitch.rms_error_deg", "pitch.control.rms", "position_error_rms_m"):
+        a, b = hv.get(f"before_switch.{k}"), hv.get(f"after_switch.{k}")
+        if a is not None and b is not None:
+            rows.append(["hover, in-flight switch", f"{k} (before -> after)", _f(a, "{:.4g}"), _f(b, "{:.4g}"),
+                         _f(100.0 * (b - a) / abs(a) if a else None, "{:+.1f} %"),
+                         "~same" if abs(b - a) <= 0.005 * abs(a) else ("better" if b < a else "worse")])
+    if s["h_lim"].get("standard") is not None and s["h_lim"].get(tuned) is not None:
+        a, b = s["h_lim"]["standard"], s["h_lim"][tuned]
+        rows.append(["robustness (model)", "h_lim (higher is better)", _f(a, "{:.3f}"), _f(b, "{:.3f}"),
+                     _f(100 * (b - a) / a, "{:+.1f} %"),
+                     "~same" if abs(b - a) <= 0.005 * a else ("better" if b > a else "worse")])
+    lines += _table(["scenario", "metric", "standard", tuned, "change", "verdict"], rows) if rows else \
+        ["(no validation scenario ran for both sets)"]
+    lines += ["", "**Do the paper's claims hold on the twin?**", ""]
+    lines += _table(["claim", "holds", "evidence"],
+                    [[c["claim"], {True: "yes", False: "**no**", None: "n/a"}[c["holds"]], c["evidence"]]
+                     for c in s["claims"]])
+    return lines
+
+
+def _markdown(s: dict) -> str:
+    L = [f"# rotorlab pipeline report: {s['vehicle']}", "",
+         f"rotorlab {s['rotorlab_version']}, seed {s['seed']}, level `{s['level']}`. Every number here is in "
+         "`summary.json`.", "", "## Headline", ""]
+    L += _headline(s)
+    L += ["", "## 1. Identification campaign on the twin", ""]
+    L += _table(["run", "kind", "scene", "duration [s]", "std u [%]", "std q [deg/s]", "max |theta| [deg]", "stopped"],
+                [[k, r["kind"], r["scene"], _f(r["duration_s"]), _f(r["u_std_pct"]), _f(r["q_std_dps"]),
+                  _f(r["theta_max_abs_deg"]), r["stopped"] or "-"] for k, r in s["experiments"]["runs"].items()])
+    if "spectrum" in s["figures"]:
+        L += ["", f"![PRBS spectrum]({s['figures']['spectrum']})"]
+    L += ["", "## 2. Identification", "",
+          f"Estimated input delay: {s['delay_samples']} samples ({s['delay_samples'] * 0.02:.2f} s; published 0.06 s). "
+          "nu-gap is to the twin's true linearised model (rig, delay removed, resampled to 50 Hz).", ""]
+    L += _table(["method", "order", "settings", "VAF cv [%]", "VAF val [%]", "nu-gap to truth"],
+                [[k, m["order"], _settings(m["settings"]), _f(m["vaf_cv"], "{:.2f}"), _f(m["vaf_val"], "{:.2f}"),
+                  _f(m["nugap_truth"], "{:.4f}")] for k, m in s["models"].items()])
+    pub = s.get("published", {})
+    if pub.get("pbsid_best"):
+        L += ["", f"Published best settings: PI-MOESP {pub['moesp_best']}; PBSID {pub['pbsid_best']}."]
+    if s["flight"]:
+        f = s["flight"]
+        L += ["", f"Test-bed vs in-flight PBSID model: nu-gap **{f['nugap_testbed_flight']:.4f}** "
+                  f"(published {f['published_nugap']}); flight model to truth (rig) {f['nugap_truth']:.4f}."]
+    for k in ("bode", "poles"):
+        if k in s["figures"]:
+            L += ["", f"![{k}]({s['figures'][k]})"]
+    b = s["bootstrap"]
+    L += ["", "## 3. Bootstrap uncertainty", "",
+          f"{b['n_boot']} parametric bootstrap replications of PBSID (n={b['order']}); order-{b['w_delta_order']} "
+          f"W_delta bounding the additive spread: peak |W_delta| = {b['w_delta_peak']:.3g}, "
+          f"low-frequency |W_delta| = {b['w_delta_dc']:.3g}."]
+    L += ["", "## 4. Tuning, robust stability and Monte Carlo", "", f"Tuning: {s['tuning']}", ""]
+    L += _table(["gain set", "outer kp", "outer kd", "outer tf", "inner kp", "inner ki", "inner kd", "inner tf",
+                 "h_lim", "MC unstable", "MC rise 5/50/95 % [s]"],
+                [[name, *[_f(g["pitch"]["outer"][k], "{:.4g}") for k in ("kp", "kd", "tf")],
+                  *[_f(g["pitch"]["inner"][k], "{:.4g}") for k in ("kp", "ki", "kd", "tf")],
+                  _f(s["h_lim"].get(name), "{:.3f}"),
+                  _f(s["montecarlo"].get(name, {}).get("fraction_unstable"), "{:.1%}"),
+                  " / ".join(_f(x, "{:.3f}") for x in s["montecarlo"].get(name, {}).get("rise_s", []))]
+                 for name, g in s["gains"].items()])
+    if pub.get("h_lim"):
+        L += ["", "Published h_lim (their W_delta is not published, so only the ordering is comparable): " +
+              "; ".join(f"{k}: " + ", ".join(f"{w} {v}" for w, v in d.items()) for k, d in pub["h_lim"].items()) + "."]
+    if isinstance(s.get("goals"), dict) and "skipped" not in s["goals"]:
+        L += ["", "Goal report per gain set: see `summary.json` -> `goals`."]
+    elif isinstance(s.get("goals"), dict):
+        L += ["", f"Goal evaluation: {s['goals']['skipped']}"]
+    if "montecarlo" in s["figures"]:
+        L += ["", f"![Monte Carlo]({s['figures']['montecarlo']})"]
+    L += ["", "## 5. Validation on the twin", ""]
+    for sc, sets in s["validation"].items():
+        keys = sorted(set().union(*[set(m) for m in sets.values()]))
+        keys = [k for k in keys if not k.startswith("band")][:14]
+        L += [f"### {sc}", ""]
+        L += _table(["metric"] + list(sets), [[k] + [_f(sets[n].get(k), "{:.4g}") for n in sets] for k in keys])
+        key = {"hover": "hover"}.get(sc, sc)
+        if key in s["figures"]:
+            L += ["", f"![{sc}]({s['figures'][key]})"]
+        L += [""]
+    if s["skipped"]:
+        L += ["## Skipped", ""] + [f"- `{k}`: {v}" for k, v in s["skipped"].items()]
+    if s.get("recordings"):
+        L += ["", "## Recordings", "", "Open with `rerun FILE.rrd`: " +
+              ", ".join(f"[{k}]({v})" for k, v in s["recordings"].items())]
+    return "\n".join(L) + "\n"
+
+
+def _settings(st: dict) -> str:
+    keys = ("order", "horizon", "past", "future")
+    return ", ".join(f"{k}={st[k]}" for k in keys if k in st and st[k] is not None) or "-"
+
+
+def _html(md: str, title: str) -> str:
+    """The same content as report.md in HTML (tables, headings, images, bold; no external renderer needed)."""
+    import re
+
+    def inline(t):
+        t = html.escape(t)
+        t = re.sub(r"!\[([^\]]*)\]\(([^)]+)\)", r'<img alt="\1" src="\2" style="max-width:100%">', t)
+        t = re.sub(r"\[([^\]]+)\]\(([^)]+)\)", r'<a href="\2">\1</a>', t)
+        t = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", t)
+        return re.sub(r"`([^`]+)`", r"<code>\1</code>", t)
+
+    out, lines, i = [], md.splitlines(), 0
+    while i < len(lines):
+        ln = lines[i]
+        if ln.startswith("|"):
+            rows = []
+            while i < len(lines) and lines[i].startswith("|"):
+                rows.append(lines[i])
+                i += 1
+            cells = [[c.strip() for c in r.strip("|").split("|")] for r in rows if not set(r) <= set("|-")]
+            out.append("<table>")
+            for j, r in enumerate(cells):
+                tag = "th" if j == 0 else "td"
+                out.append("<tr>" + "".join(f"<{tag}>{inline(c)}</{tag}>" for c in r) + "</tr>")
+            out.append("</table>")
+            continue
+        m = re.match(r"(#+) (.*)", ln)
+        if m:
+            out.append(f"<h{len(m.group(1))}>{inline(m.group(2))}</h{len(m.group(1))}>")
+        elif ln.startswith("- "):
+            out.append(f"<li>{inline(ln[2:])}</li>")
+        elif ln.strip():
+            out.append(f"<p>{inline(ln)}</p>")
+        i += 1
+    style = ("body{font-family:sans-serif;max-width:1000px;margin:auto}table{border-collapse:collapse}"
+             "td,th{border:1px solid #bbb;padding:2px 6px;font-size:90%}")
+    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>rotorlab report: {html.escape(title)}</title>"
+            f"<style>{style}</style></head><body>\n" + "\n".join(out) + "\n</body></html>\n")

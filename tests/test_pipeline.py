@@ -1,0 +1,180 @@
+"""The end-to-end pipeline (tiny level: every stage, seconds each) checked against the libraries called
+directly, plus resume after an interruption, disk-full safety and bad inputs."""
+
+import errno
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from rotorlab import pipeline
+from rotorlab.errors import UnknownNameError
+from rotorlab.pipeline import PipelineError, PipelineOptions, load_identified, run_pipeline, stage_dir
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pl") / "run"
+    lines = []
+    run_pipeline(PipelineOptions(vehicle="anteos-p2a2", out=out, level="tiny", seed=3, executor="local", workers=2,
+                                 progress=False), log=lines.append)
+    return out, lines
+
+
+def _summary(out):
+    return json.loads((stage_dir(out, "report") / "summary.json").read_text())
+
+
+def test_every_stage_runs_and_reports(run):
+    out, lines = run
+    assert [ln.split()[1] for ln in lines if ln.endswith(" s") and "done in" in ln] == list(pipeline.STAGES)
+    rep = stage_dir(out, "report")
+    md = (rep / "report.md").read_text()
+    assert "Does `" in md and "Do the paper's claims hold" in md
+    assert "<table>" in (rep / "report.html").read_text()
+    s = _summary(out)
+    for method in ("pi-moesp", "pbsid", "lms-kung", "oe-greybox", "hinf-match"):
+        m = s["models"][method]
+        assert {"vaf_cv", "vaf_val", "nugap_truth"} <= set(m)
+    assert set(s["h_lim"]) >= {"standard", "optimal-testbed", "optimal-flight"}
+    assert "setpoint" in s["validation"] and "standard" in s["validation"]["setpoint"]
+    for fig in ("bode", "poles", "spectrum", "montecarlo", "setpoint"):
+        assert (rep / s["figures"][fig]).stat().st_size > 1000
+    assert (rep / "gains" / "standard.toml").exists() and (rep / "models" / "w_delta.json").exists()
+
+
+def test_identification_recovers_the_twin(run):
+    """Ground truth: the twin's delay is 0.06 s = 3 samples and its linearisation is the true model."""
+    s = _summary(run[0])
+    assert s["delay_samples"] == 3
+    assert s["models"]["pi-moesp"]["vaf_cv"] > 95.0
+    assert s["models"]["pi-moesp"]["nugap_truth"] < 0.1
+    assert s["models"]["oe-greybox"]["nugap_truth"] < 0.2
+
+
+def test_report_numbers_match_the_libraries(run):
+    from rotorlab.gains import load_gains
+    from rotorlab.ident.metrics import simulate, vaf
+    from rotorlab.ident.modelio import load_model
+    from rotorlab.ident.nugap import nugap
+    from rotorlab.tune.robust import h_lim
+
+    out = run[0]
+    s = _summary(out)
+    models = stage_dir(out, "report") / "models"
+    cv = pipeline._read_log(stage_dir(out, "experiments") / "cv.parquet")
+    val = pipeline._read_log(stage_dir(out, "experiments") / "val.parquet")
+    truth, _, _ = load_model(models / "truth.json")
+    for method in ("pi-moesp", "pbsid"):
+        m = load_identified(models / f"{method}.json")
+        v_cv = vaf(cv["q"], simulate(m, cv["u_lon"], x0="estimate", y=cv["q"]))[0]
+        v_val = vaf(val["q"], simulate(m, val["u_lon"], x0="estimate", y=val["q"]))[0]
+        assert s["models"][method]["vaf_cv"] == pytest.approx(v_cv, rel=1e-9)
+        assert s["models"][method]["vaf_val"] == pytest.approx(v_val, rel=1e-9)
+        assert s["models"][method]["nugap_truth"] == pytest.approx(nugap(m.sys, truth), abs=1e-6)
+    W, _, _ = load_model(models / "w_delta.json")
+    nom = load_identified(models / f"{s['nominal_model']}.json")
+    std = load_gains(stage_dir(out, "report") / "gains" / "standard.toml")
+    V = pipeline.cascade_loop(nom.sys, std["pitch"], nom.delay)[1, 2]
+    assert s["h_lim"]["standard"] == pytest.approx(h_lim(W, V), rel=1e-6)
+
+
+def test_cascade_loop_matches_feedback_algebra():
+    """The interconnected cascade equals the closed loop written with control.feedback."""
+    import control as ct
+
+    from rotorlab.gains import load_gains
+    from rotorlab.lti import as_ss, delay_ss, pid_tf
+    from rotorlab.vehicles import gains_path
+
+    dt = 0.02
+    G = ct.c2d(ct.ss(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])), dt, "zoh")
+    g = load_gains(gains_path("anteos-p2a2", "standard"))["pitch"]  # b = c = 1: error-driven PIDs
+    cl = pipeline.cascade_loop(G, g, 3)
+    Gd = ct.series(delay_ss(3, dt), G)
+    Ci = pid_tf(g.inner.kp, g.inner.ki, g.inner.kd, g.inner.tf, dt)
+    Co = pid_tf(g.outer.kp, 0, g.outer.kd, g.outer.tf, dt)
+    inner = ct.feedback(ct.series(Ci, Gd), 1)  # q_ref -> q
+    integ = ct.tf([dt], [1, -1], dt)
+    T = ct.feedback(ct.series(Co, inner, integ), 1)  # theta_ref -> theta
+    w = np.array([0.3, 2.0, 8.0, 40.0])
+    np.testing.assert_allclose(ct.frequency_response(cl[0, 0], w).complex,
+                               ct.frequency_response(as_ss(T), w).complex, rtol=1e-7)
+
+
+def test_resume_after_an_interrupted_stage_reproduces_the_numbers(run, tmp_path, monkeypatch):
+    out = tmp_path / "run"
+    shutil.copytree(run[0], out)
+    before = json.loads((out / "manifest.json").read_text())["stages"]
+    shutil.rmtree(stage_dir(out, "tune"))
+
+    def boom(ctx):
+        (ctx.work / "half-written.json").write_text("{")
+        raise KeyboardInterrupt
+
+    monkeypatch.setitem(pipeline.STAGE_FUNCS, "tune", boom)
+    opts = PipelineOptions(vehicle="anteos-p2a2", out=out, level="tiny", seed=3, executor="serial", progress=False)
+    with pytest.raises(KeyboardInterrupt):
+        run_pipeline(opts, log=lambda s: None)
+    assert not stage_dir(out, "tune").exists()  # nothing half done looks finished
+    monkeypatch.undo()
+    lines = []
+    run_pipeline(opts, log=lines.append)
+    status = {ln.split()[1]: ln.split()[2] for ln in lines if ln.startswith("[")}
+    assert status["experiments"] == status["identify"] == status["bootstrap"] == "cached"
+    assert status["tune"] == "done"
+    old, new = (json.loads((d / "stages" / "tune" / "stage.json").read_text())["result"] for d in (run[0], out))
+    for key in ("h_lim", "montecarlo", "transfer", "gains"):
+        assert new[key] == old[key]  # same seed, same numbers
+    after = json.loads((out / "manifest.json").read_text())["stages"]
+    # byte-identical stage output (holds while the tuning library is unchanged between the two runs)
+    assert after["tune"]["output_hash"] == before["tune"]["output_hash"]
+    assert status["validate"] == status["report"] == "cached"  # so the downstream stages stay valid
+
+
+def test_disk_full_during_a_stage_leaves_no_final_file(run, tmp_path, monkeypatch):
+    from rotorlab import report
+
+    out = tmp_path / "run"
+    shutil.copytree(run[0], out)
+    shutil.rmtree(stage_dir(out, "report"))
+    real = report.atomic.write_text
+
+    def full(path, text):
+        if str(path).endswith("report.html"):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(path, text)
+
+    monkeypatch.setattr(report.atomic, "write_text", full)
+    opts = PipelineOptions(vehicle="anteos-p2a2", out=out, level="tiny", seed=3, executor="serial", progress=False)
+    with pytest.raises(OSError, match="No space left"):
+        run_pipeline(opts, log=lambda s: None)
+    assert not (stage_dir(out, "report") / "report.md").exists()
+    assert not list(out.rglob("report.html"))
+    monkeypatch.undo()
+    run_pipeline(opts, log=lambda s: None)
+    assert (stage_dir(out, "report") / "report.html").exists()
+    assert _summary(out)["h_lim"] == _summary(run[0])["h_lim"]
+
+
+def test_older_run_folder_is_refused(tmp_path):
+    out = tmp_path / "old"
+    out.mkdir()
+    (out / "manifest.json").write_text(json.dumps({"format": "rotorlab-pipeline", "format_version": 0,
+                                                    "rotorlab_version": "0.0.1", "vehicle": "anteos-p2a2"}))
+    with pytest.raises(PipelineError, match=r"format 0 \(rotorlab 0.0.1\).*use a new --out"):
+        run_pipeline(PipelineOptions(out=out, level="tiny", progress=False), log=lambda s: None)
+
+
+def test_foreign_folder_and_unknown_vehicle(tmp_path, capsys):
+    (tmp_path / "x.txt").write_text("mine")
+    with pytest.raises(PipelineError, match="not a rotorlab pipeline run folder"):
+        run_pipeline(PipelineOptions(out=tmp_path, level="tiny", progress=False), log=lambda s: None)
+    with pytest.raises(UnknownNameError, match="unknown vehicle 'nope'; valid: anteos-a2minib, anteos-p2a2"):
+        run_pipeline(PipelineOptions(vehicle="nope", out=tmp_path / "n", level="tiny"), log=lambda s: None)
+    from rotorlab.cli import main
+
+    assert main(["pipeline", "--vehicle", "nope", "--tiny", "--out", str(tmp_path / "c")]) == 2
+    assert "unknown vehicle 'nope'" in capsys.readouterr().err
+    assert not (tmp_path / "n").exists()
