@@ -22,8 +22,11 @@ COMMANDS = {
 }
 
 
-class CLIError(Exception):
-    """A user-facing error: printed without a traceback, exit status 2."""
+from rotorlab.errors import RotorlabError
+
+
+class CLIError(RotorlabError):
+    """A user-facing error raised by a command: printed without a traceback, exit status 2."""
 
 
 def _available():
@@ -49,7 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args._module.run(args) or 0)
-    except CLIError as exc:
+    except RotorlabError as exc:
+        # every deliberate rotorlab error (bad file, unknown name, bad data) already says what and where;
+        # matching on the base class also holds when this module runs as __main__ (python -m rotorlab.cli)
         print(f"rotorlab {args.command}: error: {exc}", file=sys.stderr)
         return 2
 
