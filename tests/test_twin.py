@@ -96,6 +96,7 @@ def test_imu_mount_resonance_at_design_frequency():
     v = load_vehicle("anteos-p2a2")
     G = linearize("pitch-rig", "anteos-p2a2", "pitch", "gyro_pitch", delay=False)
     ev = np.log(np.linalg.eigvals(np.asarray(G.A)).astype(complex)) / G.dt
+    ev = ev[np.abs(ev) > 1.0]  # the rig's free rotation is a pole at the origin
     wn = np.abs(ev)
     zeta = -ev.real / wn
     target = 2 * math.pi * v.imu.mount_frequency_hz
