@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from pathlib import Path
 
 from rotorlab import atomic
+from rotorlab.config import read_toml
 from rotorlab.errors import ConfigError
 
 LOOPS = ("outer", "inner")
@@ -149,14 +149,7 @@ def parse_gains(data: dict, name: str = "custom", src="<gains>") -> GainSet:
 def load_gains(path) -> GainSet:
     """Read a gains TOML file."""
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError("gains file not found", file=path) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=path) from None
-    return parse_gains(data, name=path.stem, src=path)
+    return parse_gains(read_toml(path, "gains"), name=path.stem, src=path)
 
 
 def save_gains(gains: GainSet, path) -> Path:

@@ -66,7 +66,7 @@ class HoverEnv(RotorlabEnv):
     """
 
     _extra_options = ("target_m",)
-    _episode_attrs = ("_k", "_target", "_fs", "_u", "_hover_col")
+    _episode_attrs = ("_k", "_target", "_fs", "_u", "_hover_col", "_meas")
 
     def __init__(self, vehicle="anteos-p2a2", *, control: str = "commands", gains=None, target_range_m: float = 1.0,
                  max_tilt_deg: float = 30.0, **kwargs):
@@ -139,15 +139,6 @@ class HoverEnv(RotorlabEnv):
 
     def _info(self) -> dict:
         return {"t": self.sim.time, "target_m": self._target.copy(), "commands_pct": np.array(self._u)}
-
-    def save_state(self):
-        st = super().save_state()
-        st.python["meas"] = dict(self._meas)
-        return st
-
-    def restore_state(self, state) -> None:
-        super().restore_state(state)
-        self._meas = dict(state.python["meas"])
 
 
 __all__ = ["HoverEnv", "CONTROLS"]

@@ -72,7 +72,7 @@ class RigEnv(RotorlabEnv):
     """
 
     _extra_options = ("task", "setpoint_deg")
-    _episode_attrs = ("_k", "_setpoints", "_last_action", "_pid", "_hover_col")
+    _episode_attrs = ("_k", "_setpoints", "_last_action", "_pid", "_hover_col", "_meas")
 
     def __init__(self, axis: str = "pitch", vehicle="anteos-p2a2", *, control: str = "command", gains=None,
                  task: str = "tracking", setpoint_max_deg: float = 10.0, setpoint_period_s: float = 2.0,
@@ -180,15 +180,6 @@ class RigEnv(RotorlabEnv):
 
     def _info(self) -> dict:
         return {"t": self.sim.time, "setpoint_deg": float(self._setpoint())}
-
-    def save_state(self):
-        st = super().save_state()
-        st.python["meas"] = dict(self._meas)
-        return st
-
-    def restore_state(self, state) -> None:
-        super().restore_state(state)
-        self._meas = dict(state.python["meas"])
 
 
 __all__ = ["RigEnv", "CONTROLS", "TASKS"]

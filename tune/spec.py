@@ -21,9 +21,9 @@ optional ``hard = true/false``. A weight is a maximum-gain profile: a number, or
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from pathlib import Path
 
+from rotorlab.config import read_toml
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.tune import cascade as cas
 from rotorlab.tune import goals as G
@@ -168,8 +168,4 @@ def load_spec(path_or_name) -> Spec:
             raise ConfigError("spec file not found", file=p)
         else:
             raise UnknownNameError("spec", str(path_or_name), specs)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=p) from None
-    return parse_spec(data, name=p.stem, src=p)
+    return parse_spec(read_toml(p, "spec"), name=p.stem, src=p)

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
 
+from rotorlab.config import read_toml
 from rotorlab.errors import ConfigError
 
 RHO_AIR = 1.225  # kg/m^3, ISA sea level
@@ -348,11 +348,4 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
 
 def load_vehicle_file(path, physics_dt_s: float | None = None) -> VehicleSpec:
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError("vehicle file not found", file=path) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=path) from None
-    return parse_vehicle(data, path, physics_dt_s)
+    return parse_vehicle(read_toml(path, "vehicle"), path, physics_dt_s)

@@ -12,7 +12,7 @@ import dataclasses
 import importlib
 from typing import Any, Callable
 
-from rotorlab.errors import UnknownNameError
+from rotorlab.errors import ConfigError, UnknownNameError
 
 # scenario name -> module under rotorlab.sim.scenarios
 SCENARIOS = {
@@ -66,6 +66,14 @@ class Setup:
     noise_on: Callable | None = None  # noise_on(t) -> bool: when the requested IMU noise is on (default always)
     drive: Callable | None = None  # drive(sim, t) -> dict of extra columns; replaces the flight software (bench tests)
     notes: dict = dataclasses.field(default_factory=dict)
+
+
+def merged_options(ctx: Context, defaults: dict) -> dict:
+    """The scenario's options over its defaults; an unknown option is an error naming it and the valid ones."""
+    unknown = sorted(set(ctx.options) - set(defaults))
+    if unknown:
+        raise ConfigError(field=f"options.{unknown[0]}", expected=f"one of {sorted(defaults)}", got=unknown[0])
+    return {**defaults, **ctx.options}
 
 
 def list_scenarios() -> list[str]:

@@ -15,10 +15,9 @@ Options
 
 from __future__ import annotations
 
-from rotorlab.errors import ConfigError
 from rotorlab.sim.disturbances.cosine_gust import CosineGust
 from rotorlab.sim.disturbances.mean_wind import MeanWind
-from rotorlab.sim.scenarios import Context, Setup, _metrics
+from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 
 NAME = "gust"
 DESCRIPTION = "1-cosine wind gust, null set-point"
@@ -28,11 +27,7 @@ DEFAULTS = {"amplitude_mps": 5.0, "t_start_s": 2.0, "gust_s": 1.0, "from_deg": 0
 
 
 def options(ctx: Context) -> dict:
-    unknown = set(ctx.options) - set(DEFAULTS)
-    if unknown:
-        raise ConfigError(field=f"options.{sorted(unknown)[0]}", expected=f"one of {sorted(DEFAULTS)}",
-                          got=sorted(unknown)[0])
-    return {**DEFAULTS, **ctx.options}
+    return merged_options(ctx, DEFAULTS)
 
 
 def setup(ctx: Context) -> Setup:

@@ -18,7 +18,7 @@ from rotorlab.gains import GainSet, load_gains
 from rotorlab.scenes import HOVER_HEIGHT_M
 from rotorlab.sim.disturbances.mean_wind import MeanWind
 from rotorlab.sim.disturbances.turbulence import DrydenWind
-from rotorlab.sim.scenarios import Context, Setup, _metrics
+from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 from rotorlab.vehicles import gains_path, list_gains
 
 NAME = "hover"
@@ -42,11 +42,7 @@ def _switch_gains(vehicle, name) -> GainSet:
 
 
 def setup(ctx: Context) -> Setup:
-    unknown = set(ctx.options) - set(DEFAULTS)
-    if unknown:
-        raise ConfigError(field=f"options.{sorted(unknown)[0]}", expected=f"one of {sorted(DEFAULTS)}",
-                          got=sorted(unknown)[0])
-    o = {**DEFAULTS, **ctx.options}
+    o = merged_options(ctx, DEFAULTS)
     dist = [MeanWind(o["wind_mps"], o["from_deg"])] if o["wind_mps"] else []
     if o["turbulence"]:
         if not o["wind_mps"] > 0:

@@ -19,7 +19,7 @@ import numpy as np
 
 from rotorlab.errors import ConfigError
 from rotorlab.excitation import ANTEOS_CAMPAIGN, campaign
-from rotorlab.sim.scenarios import Context, Setup, _metrics
+from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 
 NAME = "prbs"
 DESCRIPTION = "quasi-open-loop PRBS campaign on the rig with the +-20 deg supervisor"
@@ -31,11 +31,7 @@ SUPERVISOR_LIMIT_DEG = 20.0
 
 def excitation(ctx: Context, defaults: dict = DEFAULTS) -> tuple[np.ndarray, list]:
     """The concatenated PRBS (%, one sample per tick) and its segment table, seeded by the run seed."""
-    unknown = set(ctx.options) - set(defaults)
-    if unknown:
-        raise ConfigError(field=f"options.{sorted(unknown)[0]}", expected=f"one of {sorted(defaults)}",
-                          got=sorted(unknown)[0])
-    o = {**defaults, **ctx.options}
+    o = merged_options(ctx, defaults)
     holds, amps = list(o["holds"]), [float(a) for a in o["amplitudes_pct"]]
     if len(holds) != len(amps) or not holds:
         raise ConfigError(field="options.holds/amplitudes_pct", expected="lists of the same non-zero length",

@@ -15,7 +15,7 @@ import numpy as np
 
 from rotorlab.errors import ConfigError
 from rotorlab.excitation import prbs
-from rotorlab.sim.scenarios import Context, Setup, _metrics
+from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 
 NAME = "prbs-closed"
 DESCRIPTION = "PRBS on the set-point or the command with the nominal cascade closed"
@@ -27,11 +27,7 @@ SEED_TAG = 0x70726263
 
 def signal(ctx: Context, defaults: dict, target_names: dict, default_amp: dict):
     """Validate the options against ``defaults`` and draw the PRBS: ``(target, amplitude, samples)``."""
-    unknown = set(ctx.options) - set(defaults)
-    if unknown:
-        raise ConfigError(field=f"options.{sorted(unknown)[0]}", expected=f"one of {sorted(defaults)}",
-                          got=sorted(unknown)[0])
-    o = {**defaults, **ctx.options}
+    o = merged_options(ctx, defaults)
     if o["target"] not in target_names:
         raise ConfigError(field="options.target", expected=f"one of {sorted(target_names)}", got=o["target"])
     amp = float(o["amplitude"] if o["amplitude"] is not None else default_amp[o["target"]])

@@ -13,9 +13,8 @@ Options
 
 from __future__ import annotations
 
-from rotorlab.errors import ConfigError
 from rotorlab.sim.disturbances.rope import RopePull
-from rotorlab.sim.scenarios import Context, Setup, _metrics
+from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 
 NAME = "rope-pull"
 DESCRIPTION = "rope at the front-arm tip pulled to ~20 deg, held, released (A2-MINI/B test-bed test)"
@@ -25,11 +24,7 @@ DEFAULTS = {"pull_deg": -20.0, "t_pull_s": 1.0, "ramp_s": 0.8, "hold_s": 2.0, "l
 
 
 def setup(ctx: Context) -> Setup:
-    unknown = set(ctx.options) - set(DEFAULTS)
-    if unknown:
-        raise ConfigError(field=f"options.{sorted(unknown)[0]}", expected=f"one of {sorted(DEFAULTS)}",
-                          got=sorted(unknown)[0])
-    o = {**DEFAULTS, **ctx.options}
+    o = merged_options(ctx, DEFAULTS)
     rope = RopePull(o["pull_deg"], o["t_pull_s"], o["ramp_s"], o["hold_s"], o["length_m"])
     return Setup(mode="cascade", disturbances=[rope], rate_limit_dps=150.0,
                  u_limit_pct=ctx.vehicle.command_limit_pct,

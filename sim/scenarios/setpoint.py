@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from rotorlab.errors import ConfigError
-from rotorlab.sim.scenarios import Context, Setup, _metrics
+from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 
 NAME = "setpoint"
 DESCRIPTION = "set-point steps (0.3 deg noise-free, then both signs, up to saturation)"
@@ -47,10 +47,7 @@ def schedule(options: dict) -> list[tuple[float, float]]:
 
 
 def setup(ctx: Context) -> Setup:
-    unknown = set(ctx.options) - set(DEFAULTS)
-    if unknown:
-        raise ConfigError(field=f"options.{sorted(unknown)[0]}", expected=f"one of {sorted(DEFAULTS)}",
-                          got=sorted(unknown)[0])
+    merged_options(ctx, DEFAULTS)
     changes = schedule(ctx.options)
     times = np.array([c[0] for c in changes])
     levels = np.array([c[1] for c in changes])

@@ -12,22 +12,19 @@ import numpy as np
 import scipy.optimize as so
 
 from rotorlab.errors import ConfigError
-from rotorlab.sim.scenarios import Context, Setup
+from rotorlab.sim.scenarios import Context, Setup, merged_options
 
 NAME = "thrust-steps"
 DESCRIPTION = "thrust stand: command steps, first-order motor/servo response and delay"
 SCENES = ("thrust-stand",)
 DURATION_S = 2.0
-OPTIONS = ("low_pct", "high_pct", "hold_s")
+DEFAULTS = {"low_pct": 50.0, "high_pct": 70.0, "hold_s": 0.5}
 COLUMNS = {"cmd": "%", "thrust": "N", "omega": "rad/s"}
 
 
 def _opts(ctx):
-    for k in ctx.options:
-        if k not in OPTIONS:
-            raise ConfigError(field=f"options.{k}", expected=f"one of {list(OPTIONS)}", got=k)
-    lo, hi = float(ctx.options.get("low_pct", 50.0)), float(ctx.options.get("high_pct", 70.0))
-    hold = float(ctx.options.get("hold_s", 0.5))
+    o = merged_options(ctx, DEFAULTS)
+    lo, hi, hold = float(o["low_pct"]), float(o["high_pct"]), float(o["hold_s"])
     if not (0 <= lo < hi <= 100):
         raise ConfigError(field="options.low_pct/high_pct", expected="0 <= low < high <= 100", got=(lo, hi))
     return lo, hi, hold

@@ -12,22 +12,20 @@ Options: ``levels_pct`` (list, default 20..100 % in steps of 10), ``hold_s`` (de
 import numpy as np
 
 from rotorlab.errors import ConfigError
-from rotorlab.sim.scenarios import Context, Setup
+from rotorlab.sim.scenarios import Context, Setup, merged_options
 
 NAME = "thrust-sweep"
 DESCRIPTION = "thrust stand: static sweep of the rotor command (thrust, torque, speed)"
 SCENES = ("thrust-stand",)
 DURATION_S = 9.0
 COLUMNS = {"cmd": "%", "thrust": "N", "torque": "N m", "omega": "rad/s"}
-OPTIONS = ("levels_pct", "hold_s")
+DEFAULTS = {"levels_pct": [20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0], "hold_s": 1.0}
 
 
 def _levels(ctx: Context):
-    for k in ctx.options:
-        if k not in OPTIONS:
-            raise ConfigError(field=f"options.{k}", expected=f"one of {list(OPTIONS)}", got=k)
-    levels = np.asarray(ctx.options.get("levels_pct", np.arange(20.0, 101.0, 10.0)), dtype=float)
-    hold = float(ctx.options.get("hold_s", 1.0))
+    o = merged_options(ctx, DEFAULTS)
+    levels = np.asarray(o["levels_pct"], dtype=float)
+    hold = float(o["hold_s"])
     if levels.ndim != 1 or levels.size < 2 or np.any(levels < 0) or np.any(levels > 100):
         raise ConfigError(field="options.levels_pct", expected="two or more levels in [0, 100] %", got=levels.tolist())
     if not hold > 0:
