@@ -119,7 +119,13 @@ def pbsid(u, y, order: int, past: int, future: int | None = None, dt: float = 1.
     order : int
         Model order n (``n <= future * p``).
     past : int
-        Past window length (VARX order); must make ``Abar^past`` negligible.
+        Past window length (VARX order); must make ``Abar^past`` negligible, ``Abar = A - K C`` the
+        predictor matrix. A too short window truncates the predictor and biases the low-frequency
+        response. In closed loop with disturbances at the plant input the slowest predictor pole is the
+        plant's slowest zero (the predictor inverts the noise model), not a plant pole: for the P2-A2 pitch
+        model at 50 Hz it is 0.9435, so ``past = 20`` leaves ``0.31`` of it (about +3 % DC gain bias in a
+        disturbed loop) and ``past = 50`` leaves ``0.055``. ``extra["predictor_decay"]`` reports
+        ``max|eig(Abar)|^past`` of the identified model to check the choice.
     future : int, optional
         Future window (block rows of the observability matrix), ``order / p < future <= past``;
         defaults to ``past``.
@@ -130,7 +136,14 @@ def pbsid(u, y, order: int, past: int, future: int | None = None, dt: float = 1.
     -------
     IdentifiedModel
         ``method = "pbsid"``, ``K`` the innovation gain, ``noise_cov`` the innovation covariance,
-        ``singular_values`` those the state was read from.
+        ``singular_values`` those the state was read from, ``extra["predictor_decay"]`` as above.
+
+    Notes
+    -----
+    Consistent in closed loop (the future inputs are never projected out, unlike MOESP/N4SID), but the
+    DC gain of a loop with a strong low-frequency disturbance is weakly informed by any data: its error
+    shrinks with the record length (roughly as 1/N for the bias, 1/sqrt(N) for the spread), while the
+    open-loop methods' bias does not.
     """
     pst = check_int(past, "past", 1)
     fut = pst if future is None else check_int(future, "future", 1)
@@ -154,28 +167,33 @@ def pbsid(u, y, order: int, past: int, future: int | None = None, dt: float = 1.
             f"pbsid with past window {pst} needs at least {3 * nreg + pst + d} samples "
             f"(three times the {nreg} VARX regressors); got {N + d}: use a longer record or a shorter window"
         )
-    z = np.hstack([u2, y2])
-    Z = block_hankel(z, 0, pst, cols)  # rows: z(k-past) ... z(k-1), columns k = past..N-1
-    Yk = y2[pst:].T
-    Uk = u2[pst:].T
-    Phi = np.vstack([Z, Uk]) if feedthrough else Z
-    r = Phi.shape[0]
-    # One thin QR of [Phi; Y]^T serves both the VARX least squares (R11 theta = R12) and, through R11's
-    # leading block (the R factor of Z^T), the state basis below.
-    R = sla.qr(np.vstack([Phi, Yk]).T, mode="r", check_finite=False)[0][: r + p]
-    theta = sla.solve_triangular(R[:r, :r], R[:r, r:], check_finite=False).T
-    Xi = theta[:, : pst * (m + p)]
     q = m + p
-    GK = np.zeros((fut * p, pst * q))
+    z = np.hstack([u2, y2])
+    # VARX regressors z(k-past..k-1) (and u(k)) and target y(k) are all rows of the block Hankel matrix of z
+    # with past + 1 block rows, so the normal equations come from its Gram matrix in O(N past) (see
+    # _gram_factor); a dense QR of the N x past(m+p) regressor matrix costs O(N past^2) and would limit
+    # the past window (which the slow predictor poles of closed-loop data need long) to about 20 at N = 7000.
+    cur = pst * q
+    u_now = cur + np.arange(m) if feedthrough else np.arange(0)
+    idx = np.concatenate([np.arange(cur), u_now, cur + m + np.arange(p)])
+    L = _gram_factor(z, pst + 1, cols, idx)
+    # normal equations theta (L11 L11^T) = L21 L11^T, i.e. theta = L21 L11^-1
+    theta = sla.solve_triangular(L[:nreg, :nreg], L[nreg:, :nreg].T, lower=True, trans="T",
+                                 check_finite=False).T
+    Xi = theta[:, :cur]
+    GK = np.zeros((fut * p, cur))
     for i in range(fut):
         GK[i * p:(i + 1) * p, i * q:] = Xi[:, : (pst - i) * q]
-    # The state is read from the row space of (Gamma K) Z. Instead of the (fut p x N) product itself, use
-    # (Gamma K) R^T with Z^T = Q R (thin QR): same left singular vectors and singular values, and
-    # X = S^-1/2 U^T (Gamma K) Z without forming V for all N columns.
-    Rz = R[: pst * q, : pst * q]
-    Us, sv, _ = sla.svd(GK @ Rz.T, full_matrices=False, check_finite=False)
-    T = Us[:, :n].T / np.sqrt(sv[:n])[:, None]
-    X = (T @ GK) @ Z  # n x cols, states at k = past..N-1
+    # The state is read from the row space of (Gamma K) Z. With Z Z^T = Lz Lz^T, (Gamma K) Lz has the same
+    # left singular vectors and singular values as the (fut p x N) product, which is never formed.
+    Lz = L[:cur, :cur]
+    Us, sv, _ = sla.svd(GK @ Lz, full_matrices=False, check_finite=False)
+    W = (Us[:, :n].T / np.sqrt(sv[:n])[:, None]) @ GK  # x(k) = W z(k-past..k-1)
+    # X = W Z lag by lag: O(N past n) without the past(m+p) x N Hankel matrix
+    Wl = W.reshape(n, pst, q)
+    X = sum(Wl[:, j] @ z[j: j + cols].T for j in range(pst))  # n x cols, states at k = past..N-1
+    Yk = y2[pst:].T
+    Uk = u2[pst:].T
     if feedthrough:
         CD = _ls(np.vstack([X, Uk]), Yk)
         C, D = CD[:, :n], CD[:, n:]
@@ -187,8 +205,10 @@ def pbsid(u, y, order: int, past: int, future: int | None = None, dt: float = 1.
     A, B, K = ABK[:, :n], ABK[:, n:n + m], ABK[:, n + m:]
     sys = ct.ss(A, B, C, D, dt)
     settings = dict(order=n, past=pst, future=fut, dt=dt, delay=d, feedthrough=feedthrough)
+    decay = float(np.max(np.abs(np.linalg.eigvals(A - K @ C)))) ** pst
     return IdentifiedModel(sys=sys, delay=d, method="pbsid", settings=settings, K=K,
-                           noise_cov=np.atleast_2d(E @ E.T / E.shape[1]), singular_values=sv)
+                           noise_cov=np.atleast_2d(E @ E.T / E.shape[1]), singular_values=sv,
+                           extra={"predictor_decay": decay})
 
 
 def _ls(reg, target):
@@ -203,22 +223,25 @@ def _ls(reg, target):
 
 
 def _lq_factor(u, y, s: int, cols: int, past_outputs: bool) -> np.ndarray:
-    """Lower-triangular ``L`` of the LQ factorisation of ``[U_f; U_p; (Y_p;) Y_f]`` (Q is never needed).
-
-    First by Cholesky of the Gram matrix, built from the Hankel displacement structure in O(N s) instead
-    of the O(N s^2) of a QR of the 2s(m+p) x N data matrix (about 10x faster at N = 7000, s = 40). Squaring
-    the data halves the usable digits, so when the Gram matrix is near singular (noise-free or poorly
-    excited data, where the small singular values matter) the dense QR is used instead.
-    """
+    """Lower-triangular ``L`` of the LQ factorisation of ``[U_f; U_p; (Y_p;) Y_f]`` (Q is never needed)."""
     m, p = u.shape[1], y.shape[1]
     c = m + p
     t_f, t_p = np.arange(s, 2 * s), np.arange(s)
     sel = lambda times, chans: (times[:, None] * c + chans[None, :]).ravel()
     cu, cy = np.arange(m), np.arange(m, c)
     idx = [sel(t_f, cu), sel(t_p, cu)] + ([sel(t_p, cy)] if past_outputs else []) + [sel(t_f, cy)]
-    idx = np.concatenate(idx)
-    z = np.hstack([u, y])
-    G = hankel_gram(z, 2 * s, cols)[np.ix_(idx, idx)]
+    return _gram_factor(np.hstack([u, y]), 2 * s, cols, np.concatenate(idx))
+
+
+def _gram_factor(z: np.ndarray, rows: int, cols: int, idx: np.ndarray) -> np.ndarray:
+    """Lower-triangular ``L`` with ``L L^T = M M^T``, ``M`` = rows ``idx`` of ``block_hankel(z, 0, rows, cols)``.
+
+    First by Cholesky of the Gram matrix, built from the Hankel displacement structure in O(N rows) instead
+    of the O(N rows^2) of a QR of ``M`` (about 10x faster at N = 7000, 40-80 block rows). Squaring the data
+    halves the usable digits, so when the Gram matrix is near singular (noise-free or poorly excited data,
+    where the small singular values matter) the dense QR is used instead.
+    """
+    G = hankel_gram(z, rows, cols)[np.ix_(idx, idx)]
     try:
         L = sla.cholesky(G, lower=True, check_finite=False)
         dg = np.abs(np.diag(L))
@@ -226,7 +249,7 @@ def _lq_factor(u, y, s: int, cols: int, past_outputs: bool) -> np.ndarray:
             return L
     except sla.LinAlgError:
         pass
-    M = block_hankel(z, 0, 2 * s, cols)[idx]
+    M = block_hankel(z, 0, rows, cols)[idx]
     R = sla.qr(M.T, mode="r", overwrite_a=True, check_finite=False)[0]
     return R[: len(idx)].T
 
