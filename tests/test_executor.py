@@ -13,8 +13,8 @@ def _square(x):
 
 def _plan():
     seeds = task_seeds(7, 2)
-    return [{"name": f"r{i}", "kind": "prbs", "scene": "pitch-rig", "vehicle": "anteos-p2a2", "seed": s,
-             "segments": [[[0.05, 0.1], 7.0, 1.0]]} for i, s in enumerate(seeds)]
+    return [{"name": f"r{i}", "scenario": "prbs", "vehicle": "anteos-p2a2", "seed": s, "duration_s": 1.5,
+             "options": {}} for i, s in enumerate(seeds)]
 
 
 def test_task_seeds_are_reproducible_and_distinct():

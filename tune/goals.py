@@ -73,6 +73,20 @@ class _Const:
 _inv = _InvMag
 
 
+def _detail_grid(Gp):
+    """Frequency grid (rad/s) for the report details of discrete loops: 600 log points up to Nyquist.
+
+    The delay's shift register makes the loop's A defective, so rotorlab.tune.margins falls back to one
+    dense solve per frequency; its default 4000-point grid then costs more than the whole tuning. Crossings
+    are refined by brentq on the exact response, so the grid only has to separate them (0.9 % spacing).
+    The grid stops 1e-10 (relative) short of Nyquist: there Im L is pure round-off, whose sign can differ
+    between the gridded and the pointwise evaluation and break the bracketing; margins still treats the
+    end point as Nyquist (it compares with math.isclose)."""
+    if not lti.is_discrete(Gp):
+        return None
+    return np.geomspace(1e-3, math.pi / float(Gp.dt) * (1 - 1e-10), 600)
+
+
 class Goal:
     hard: bool = False
     label: str = "goal"
@@ -145,7 +159,7 @@ class CrossoverBand(Goal):
     def detail(self, Gp, K):
         from rotorlab.tune.margins import crossover_frequencies
 
-        wc = crossover_frequencies(self.loop_tf(Gp, K))
+        wc = crossover_frequencies(self.loop_tf(Gp, K), w=_detail_grid(Gp))
         return "crossover " + (", ".join(f"{w:.2f}" for w in wc) if len(wc) else "none") + " rad/s"
 
 
@@ -218,7 +232,7 @@ class Margins(Goal):
 
         cut, inj, meas = cas.LOOP_POINTS[self.point]
         L = -closed_loop(cas.generalised_plant(Gp, cut, inputs=(inj,), outputs=(meas,)), 4, 2, K)
-        m = margins(L)
+        m = margins(L, w=_detail_grid(Gp))
         return f"GM {m.gm_db:.1f} dB, PM {m.pm_deg:.1f} deg, disk alpha {m.disk_alpha:.2f}"
 
 
@@ -268,10 +282,6 @@ def _models_plants(models, dt):
     return [(m, cas.cascade_plant(m, dt)) for m in models]
 
 
-def _goal_value(prob, ch_list, theta):
-    return max((prob.peaks(theta, ch, nmax=3)[0][0] for ch in ch_list), default=0.0)
-
-
 def evaluate(spec, gains, models) -> list[GoalResult]:
     """Every goal of ``spec`` on every model for the gain set ``gains`` (GainSet or AxisGains)."""
     from rotorlab.gains import GainSet
@@ -283,14 +293,24 @@ def evaluate(spec, gains, models) -> list[GoalResult]:
     out = []
     for m, Gp in _models_plants(models, spec.dt):
         stable = lti.is_stable(closed_loop(cas.generalised_plant(Gp), 4, 2, K))
+        # every goal's channels in one problem: their peaks come from one batched evaluation
+        per_goal = [(g, g.channels(Gp, spec.dt)) for g in spec.goals if not isinstance(g, Poles)]
+        chans = [c for _, cs in per_goal for c in cs]
+        peaks = {}
+        if stable and chans:
+            allp = _Problem(S, chans, [], np.zeros(len(th), bool), np.ones(0)).all_peaks(th, nmax=3)
+            i = 0
+            for g, cs in per_goal:
+                peaks[id(g)] = allp[i:i + len(cs)]
+                i += len(cs)
         for g in spec.goals:
             if isinstance(g, Poles):
                 v, det = g.value(Gp, K)
+            elif not stable:
+                v, det = np.inf, "closed loop unstable"
             else:
-                chans = g.channels(Gp, spec.dt)
-                prob = _Problem(S, chans, [], np.zeros(len(th), bool), np.ones(0))
-                v = _goal_value(prob, chans, th) if stable else np.inf
-                det = g.detail(Gp, K) if stable else "closed loop unstable"
+                v = max((p[0][0] for p in peaks[id(g)]), default=0.0)
+                det = g.detail(Gp, K)
             out.append(GoalResult(g.label, m.name, float(v), 1.0, bool(v <= 1.0), g.hard, det))
     return out
 

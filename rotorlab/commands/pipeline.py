@@ -12,7 +12,8 @@ def add_parser(sub):
     p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name (see `rotorlab list`)")
     p.add_argument("--out", default=None, help="run folder (default runs/pipeline-VEHICLE[-quick]-seedN); "
                                                "re-running into it resumes, skipping unchanged stages")
-    p.add_argument("--quick", action="store_true", help="short campaign, tiny grids, 50 bootstrap replications")
+    p.add_argument("--quick", action="store_true", help="half-length campaign, published best settings plus one alternative per grid, 50 bootstrap "
+                                                  "replications, 100 Monte Carlo samples, one tuning start, 24 s hover")
     p.add_argument("--tiny", action="store_true", help=argparse.SUPPRESS)  # tests: seconds per stage
     p.add_argument("--executor", default="local", help="local (process pool, default), serial, dask (local "
                                                         "cluster) or dask://HOST:PORT (existing scheduler)")
