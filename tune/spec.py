@@ -13,7 +13,7 @@
 
 Goal types: ``crossover`` (loop, band_rad_s), ``tracking`` (from, to, response_time_s, max_error_pct,
 peak_error), ``rejection`` / ``gain`` (from, to, weight), ``sensitivity`` (point, weight), ``effort``
-(max_gain), ``margins`` (point, gm_db, pm_deg), ``poles`` (min_damping, min_decay). Each goal takes an
+(from, to, max_gain), ``margins`` (point, gm_db, pm_deg), ``poles`` (min_damping, min_decay). Each goal takes an
 optional ``hard = true/false``. A weight is a maximum-gain profile: a number, or
 ``{kind = "highpass", order, gain_db, corner_rad_s}``.
 """
@@ -111,7 +111,9 @@ def _goal(src, i, g):
             return G.Sensitivity(_get(src, g, "point", f"{f}.point", "string"),
                                  _weight(src, f"{f}.weight", g.get("weight", 2.0)), **kw)
         if typ == "effort":
-            return G.Effort(max_gain=_weight(src, f"{f}.max_gain", g.get("max_gain", 1.0)), **kw)
+            return G.Effort(frm=_get(src, g, "from", f"{f}.from", "string", "theta_ref"),
+                            to=_get(src, g, "to", f"{f}.to", "string", "u_ctrl"),
+                            max_gain=_weight(src, f"{f}.max_gain", g.get("max_gain", 1.0)), **kw)
         if typ == "margins":
             return G.Margins(_get(src, g, "point", f"{f}.point", "string", "u"),
                              _get(src, g, "gm_db", f"{f}.gm_db", "number", 6.0),
