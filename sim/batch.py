@@ -1,0 +1,453 @@
+"""Batched closed-loop runs: many simulations of one scene model stepped in-process by ``mujoco.batch.Batch``
+under the vectorised flight software of :mod:`rotorlab.sim.control.vector`.
+
+One call of :func:`run_batch` runs ``n`` copies of a rig scenario (``setpoint``, ``gust``, ``rest`` on the
+``pitch-rig`` or ``roll-rig``) that differ in seed, gains and, optionally, physical parameters. Each
+simulation follows the scalar path of :func:`rotorlab.sim.runner.run_scenario` step for step:
+
+* the model is the one :class:`~rotorlab.sim.simulator.Simulator` builds, every simulation starts from its
+  reset state (hover keyframe, actuator delay lines filled with the trim: the whole ``mjSTATE_INTEGRATION``
+  row, ``history`` included, is copied into every row of the batch);
+* per control tick the batch takes the 20 physics steps of one control period in one call and then computes
+  the position and velocity stages at the new state (``stage=mjSTAGE_VEL``), so the IMU is sampled at the
+  tick as the scalar ``mj_step`` + ``mj_forward`` does;
+* IMU noise and bias come from a ``numpy.random.Generator`` per simulation seeded like the scalar simulator's
+  (``default_rng(seed)``: bias first, then nine normals per noisy tick), so a batched run with noise is the
+  scalar run with the same seed;
+* wind (the scenario's gust plus any per-simulation mean wind) enters as in ``Simulator._apply_wind``: the
+  per-simulation ``opt.wind`` (fuselage drag) and the rotor aero actuators' controls (body-axis wind).
+
+Per-simulation physical variation (``vary``) uses the batch's per-simulation model fields: airframe mass and
+inertia (followed by ``set_const``) and a steady wind per simulation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import mujoco
+import numpy as np
+from mujoco.batch import Batch, SimulationError
+
+from rotorlab.errors import ConfigError
+from rotorlab.gains import GainSet
+from rotorlab.sim import scenarios
+from rotorlab.sim.control.vector import VectorAttitudeController, VectorSupervisor, euler_deg_from_quats
+from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance
+from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG
+from rotorlab.sim.runner import BASE_COLUMNS, resolve_gains
+from rotorlab.sim.simulator import Simulator
+from rotorlab.scenes import PREFIX
+from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
+
+#: scenes the batched runner supports (the rigs: cascade and open-loop modes without position hold)
+SCENES = ("pitch-rig", "roll-rig")
+#: keys of ``vary``: relative standard deviations of airframe mass and inertia, wind speed std (m/s)
+VARY_KEYS = ("mass", "inertia", "wind")
+#: ticks of IMU noise drawn per simulation at a time (bounds the memory of the pre-drawn noise)
+NOISE_CHUNK_TICKS = 256
+#: yaw saturations of the flight software (FlightSoftware defaults)
+YAW_RATE_LIMIT_DPS, YAW_U_LIMIT_PCT = 90.0, 20.0
+_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS)
+_NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
+
+
+@dataclasses.dataclass
+class BatchResult:
+    """Traces and per-simulation data of a batched run.
+
+    Attributes
+    ----------
+    scenario, vehicle, scene : str
+    seeds : ndarray (n,) of int
+    t : ndarray (n_ticks,)
+        Tick times, s (common to all simulations).
+    traces : dict name -> ndarray (n, n_ticks)
+        Log columns (units as :data:`rotorlab.sim.runner.BASE_COLUMNS`); NaN after a simulation stopped.
+    rows : ndarray (n,) of int
+        Logged ticks of each simulation (``n_ticks`` unless it stopped early).
+    stopped : list of str or None
+        Why each simulation stopped early, or None.
+    params : dict name -> ndarray (n, ...)
+        Per-simulation physical parameters: ``mass_kg``, ``inertia_kgm2`` (n, 3), ``wind_ned_mps`` (n, 3).
+    info : dict
+        Scenario, options, durations, noise, gains names.
+    """
+
+    scenario: str
+    vehicle: str
+    scene: str
+    seeds: np.ndarray
+    t: np.ndarray
+    traces: dict
+    rows: np.ndarray
+    stopped: list
+    params: dict
+    info: dict
+    _ctx: object = dataclasses.field(repr=False, default=None)
+    _setup: object = dataclasses.field(repr=False, default=None)
+
+    @property
+    def n(self) -> int:
+        return len(self.seeds)
+
+    def log(self, i: int) -> dict:
+        """Simulation ``i``'s log as a dict of column arrays (``t`` included), trimmed to its rows: the shape of
+        :class:`rotorlab.sim.log.RunLog` that the scenario metrics read."""
+        k = int(self.rows[i])
+        out = {"t": self.t[:k]}
+        out.update({name: a[i, :k] for name, a in self.traces.items()})
+        return out
+
+    def metrics_of(self, i: int) -> dict:
+        """The scenario's metrics of simulation ``i`` (the nested dict ``run_scenario`` puts in ``run.json``)."""
+        fn = getattr(scenarios.get(self.scenario), "metrics", None)
+        if fn is None:
+            return {}
+        ctx = dataclasses.replace(self._ctx, seed=int(self.seeds[i]))
+        return fn(self.log(i), ctx, self._setup)
+
+    @functools.cached_property
+    def metrics(self) -> dict:
+        """Metrics table: flattened metric name (``steps.0.overshoot_pct``) -> ndarray (n,), NaN where a
+        simulation has no value (e.g. it stopped before that step). Computed on first access."""
+        flat = [_flatten(self.metrics_of(i)) for i in range(self.n)]
+        names = sorted({k for f in flat for k in f})
+        return {k: np.array([_num(f.get(k)) for f in flat]) for k in names}
+
+
+def _flatten(obj, prefix: str = "") -> dict:
+    if isinstance(obj, dict):
+        out = {}
+        for k, v in obj.items():
+            out.update(_flatten(v, f"{prefix}{k}."))
+        return out
+    if isinstance(obj, (list, tuple)):
+        out = {}
+        for k, v in enumerate(obj):
+            out.update(_flatten(v, f"{prefix}{k}."))
+        return out
+    # labels (e.g. the scored axis) are not numbers: the table keeps numbers only
+    return {} if isinstance(obj, str) else {prefix[:-1]: obj}
+
+
+def _num(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _seeds(seeds, n: int) -> np.ndarray:
+    if seeds is None:
+        return np.arange(n)
+    if np.ndim(seeds) == 0:
+        return int(seeds) + np.arange(n)
+    s = np.asarray(seeds).ravel()
+    if s.size != n or not np.issubdtype(s.dtype, np.integer):
+        raise ConfigError(field="seeds", expected=f"None, an int or {n} ints", got=f"{s.size} values of {s.dtype}")
+    return s.astype(np.int64)
+
+
+def _gain_sets(v, gains, n: int):
+    """One GainSet for all simulations, or a list of n."""
+    if gains is None or isinstance(gains, (GainSet, str)) or hasattr(gains, "__fspath__"):
+        return resolve_gains(v, gains)
+    sets = list(gains)
+    if len(sets) != n:
+        raise ConfigError(field="gains", expected=f"one gain set or {n} of them", got=len(sets))
+    return [resolve_gains(v, g) for g in sets]
+
+
+def _check_setup(name: str, setup: scenarios.Setup) -> None:
+    why = None
+    if setup.drive is not None:
+        why = "drives the actuators itself (bench test)"
+    elif setup.mode not in ("cascade", "open-loop"):
+        why = f"uses the '{setup.mode}' mode"
+    elif setup.excitation or setup.schedule or setup.on_tick is not None or setup.extra_columns:
+        why = "uses excitation, a gain schedule or scenario-specific logging"
+    else:
+        for d in setup.disturbances:
+            if not isinstance(d, WindDisturbance) or isinstance(d, SampledWind):
+                why = f"uses the '{d.name}' disturbance (only deterministic wind is batched)"
+    if why:
+        raise ConfigError(f"scenario '{name}' {why}, which the batched runner does not vectorise; "
+                          "run it with rotorlab.sim.runner.run_scenario", field="scenario", got=name)
+
+
+def _variation(vary: dict | None, seeds: np.ndarray, mass_kg: float, inertia) -> dict:
+    """Per-simulation parameters, each drawn from a Generator seeded by the simulation's seed alone (so a
+    simulation's parameters do not depend on the batch it runs in)."""
+    vary = dict(vary or {})
+    unknown = sorted(set(vary) - set(VARY_KEYS))
+    if unknown:
+        raise ConfigError(field=f"vary.{unknown[0]}", expected=f"one of {list(VARY_KEYS)}", got=unknown[0])
+    for k, s in vary.items():
+        if not (np.isscalar(s) and float(s) >= 0):
+            raise ConfigError(field=f"vary.{k}", expected="a standard deviation >= 0", got=s)
+    n = len(seeds)
+    z = np.array([np.random.default_rng([int(s), 0x76617279]).standard_normal(6) for s in seeds]).reshape(n, 6)
+    # a factor stays positive: a draw beyond -3.3 sigma of a 30 % spread would otherwise make a negative mass
+    mass = mass_kg * np.maximum(1.0 + float(vary.get("mass", 0.0)) * z[:, 0], 0.1)
+    inertia = np.asarray(inertia, dtype=float)[None, :] * np.maximum(1.0 + float(vary.get("inertia", 0.0)) * z[:, 1],
+                                                                     0.1)[:, None]
+    wind = np.zeros((n, 3))
+    wind[:, :2] = float(vary.get("wind", 0.0)) * z[:, 2:4]
+    return {"mass_kg": mass, "inertia_kgm2": inertia, "wind_ned_mps": wind, "_vary": vary}
+
+
+def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None, seeds=None, vary: dict | None = None,
+              duration_s: float | None = None, scene: str | None = None, nthread: int = 0,
+              options: dict | None = None, sensor_noise: bool | None = None, progress: bool = False) -> BatchResult:
+    """Run ``n`` closed-loop simulations of a rig scenario in one ``mujoco.batch.Batch``.
+
+    Parameters
+    ----------
+    scenario : str
+        ``setpoint``, ``gust`` or ``rest`` (scenarios whose flight software is the attitude cascade or the
+        open-loop supervisor, with deterministic wind at most).
+    vehicle : str, path or VehicleSpec
+    n : int
+        Number of simulations.
+    gains : GainSet, str, path or None, or a sequence of n of them
+        Common gains, or one set per simulation.
+    seeds : None, int or sequence of n ints
+        Seeds of the simulations (IMU noise and bias as the scalar simulator with that seed; parameter
+        variation). None: ``0 .. n-1``; an int ``s``: ``s .. s+n-1``.
+    vary : dict, optional
+        ``{'mass': rel_std, 'inertia': rel_std, 'wind': std_mps}``: airframe mass and inertia scaled by
+        ``1 + rel_std N(0, 1)`` (one factor per simulation for the whole inertia), a steady horizontal wind with
+        north and east components ``std_mps N(0, 1)`` added to the scenario's.
+    duration_s : float, optional
+        Run length, s (default the scenario's).
+    scene : str, optional
+        ``pitch-rig`` (default of the rig scenarios) or ``roll-rig``.
+    nthread : int
+        Batch threads (0: all CPUs).
+    options : dict, optional
+        Scenario options, as for ``run_scenario``.
+    sensor_noise : bool, optional
+        IMU noise on/off (default: the scenario's).
+    progress : bool
+        tqdm progress bar over the ticks.
+    """
+    from tqdm import tqdm
+
+    if not (isinstance(n, (int, np.integer)) and n >= 1):
+        raise ConfigError(field="n", expected="a number of simulations >= 1", got=n)
+    n = int(n)
+    mod = scenarios.get(scenario)
+    v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
+    scene = scene or mod.SCENES[0]
+    if scene not in mod.SCENES:
+        raise ConfigError(f"scenario '{scenario}' runs in {list(mod.SCENES)}", field="scene",
+                          expected=list(mod.SCENES), got=scene)
+    if scene not in SCENES:
+        raise ConfigError("the batched runner runs the rig scenes", field="scene", expected=list(SCENES), got=scene)
+    duration_s = float(duration_s if duration_s is not None else mod.DURATION_S)
+    if not duration_s > 0:
+        raise ConfigError(field="duration", expected="a duration > 0 s", got=duration_s)
+    seeds = _seeds(seeds, n)
+    gsets = _gain_sets(v, gains, n)
+    ctx = scenarios.Context(vehicle=v, scene=scene, gains=gsets if isinstance(gsets, GainSet) else gsets[0],
+                            seed=int(seeds[0]), duration_s=duration_s, options=dict(options or {}))
+    setup = mod.setup(ctx)
+    _check_setup(scenario, setup)
+    noise = setup.sensor_noise if sensor_noise is None else bool(sensor_noise)
+
+    # the scalar simulator builds the model and its reset state: the batch starts every simulation from it
+    sim = Simulator(scene, v, seed=0, sensor_noise=False, disturbances=setup.disturbances)
+    m, d0 = sim.model, sim.data
+    airframe = m.body(f"{PREFIX}airframe").id
+    params = _variation(vary, seeds, float(m.body_mass[airframe]), m.body_inertia[airframe])
+    row = np.empty(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_INTEGRATION))
+    mujoco.mj_getState(m, d0, row, mujoco.mjtState.mjSTATE_INTEGRATION)
+    batch = Batch(m, nsim=n, nthread=nthread)
+    if batch.nstate != row.size:
+        raise RuntimeError(f"mujoco.batch rows hold {batch.nstate} numbers, mjSTATE_INTEGRATION {row.size}")
+    batch.state[:] = row
+    vary_d = params.pop("_vary")
+    if vary_d.get("mass") or vary_d.get("inertia"):
+        batch.expand("body_mass")[:, airframe] = params["mass_kg"]
+        batch.expand("body_inertia")[:, airframe, :] = params["inertia_kgm2"]
+        batch.set_const()
+    # live views; a derived field is filled by the calls after its binding, so bind before the first forward
+    sd, ctrl, qpos = batch.bind("sensordata"), batch.bind("ctrl"), batch.bind("qpos")
+    xquat, xmat, cvel = batch.bind("xquat"), batch.bind("xmat"), batch.bind("cvel")
+    time = batch.bind("time")
+    stage_vel = int(mujoco.mjtStage.mjSTAGE_VEL)
+    batch.forward(stage=stage_vel)
+
+    def sens(name):
+        s = m.sensor(f"{PREFIX}{name}")
+        return slice(int(s.adr[0]), int(s.adr[0] + s.dim[0]))
+
+    s_gyro, s_quat = sens("gyro"), sens("imu_quat")
+    thrust = np.asarray(sim.scene.thrust_actuators)
+    aero = {k: np.asarray(a) for k, a in sim.scene.aero_actuators.items()}
+    qadr = [int(m.jnt_qposadr[m.joint(j).id]) for j in ("rig_bearing", "rig_mount")]
+    stop_deg = float(sim.scene.stop_deg)
+
+    # flight software
+    dt = sim.control_dt_s
+    lim = float(setup.u_limit_pct or v.command_limit_pct)
+    att = VectorAttitudeController(gsets, n, dt, setup.rate_limit_dps, lim, YAW_RATE_LIMIT_DPS, YAW_U_LIMIT_PCT)
+    ol = frozenset(setup.open_loop_axes) if setup.mode == "open-loop" else frozenset()
+    sup = VectorSupervisor()
+    mx = sim.mixer
+    mrows = [tuple(float(c) for c in r) for r in mx.matrix]
+    # the hover collective of the flight software's position gains (PositionGains.for_vehicle) is the vehicle's
+    u_col_default = float(v.hover_collective_pct)
+
+    # IMU noise: per-simulation generators seeded as Simulator.reset seeds its own
+    imu = v.imu
+    rngs = [np.random.default_rng(int(s)) for s in seeds]
+    bias = np.zeros((n, 6))
+    if noise:
+        for i, g in enumerate(rngs):
+            bias[i, 0:3] = g.normal(0.0, imu.gyro_bias_dps, 3)
+    std = np.repeat([imu.gyro_noise_dps, imu.angle_noise_deg], 3)
+    z_chunk, z_pos = None, NOISE_CHUNK_TICKS
+
+    # wind: the scenario's (common) plus each simulation's steady wind
+    wind_dists = list(setup.disturbances)
+    wind_sim_zup = params["wind_ned_mps"] * _NED_TO_ZUP
+    windy = bool(wind_dists) or bool(np.any(wind_sim_zup))
+    opt_wind = batch.expand("opt.wind") if windy else None
+
+    n_ticks = int(round(duration_s / dt))
+    columns = dict(BASE_COLUMNS)
+    for dist in wind_dists:
+        columns.update(dist.columns)
+    tr = {c: np.full((n_ticks, n), np.nan) for c in columns}
+    t_log = np.full(n_ticks, np.nan)
+    rows = np.full(n, n_ticks)
+    stopped: list = [None] * n
+    active = np.ones(n, dtype=bool)
+    ids = None  # all simulations while none has stopped
+    psi_latched = None
+    gyro_scale = FLU_TO_FRD * RAD2DEG
+    reference, noise_on = setup.reference, setup.noise_on
+
+    for k in tqdm(range(n_ticks), desc="simulating batch", unit="tick", disable=not progress, leave=False):
+        i0 = int(np.argmax(active))
+        t = float(time[i0])
+        t_log[k] = t
+        # ---- measure (Simulator.measure)
+        meas = np.empty((n, 6))
+        meas[:, 0:3] = sd[:, s_gyro] * gyro_scale
+        meas[:, 3:6] = euler_deg_from_quats(sd[:, s_quat])
+        if noise and (noise_on is None or noise_on(t)):
+            if z_pos == NOISE_CHUNK_TICKS:
+                # the same stream as nine normals per tick: the Generator fills arrays sample by sample
+                z_chunk = np.stack([g.standard_normal((NOISE_CHUNK_TICKS, 9)) for g in rngs], axis=1)
+                z_pos = 0
+            meas += bias + std * z_chunk[z_pos, :, 0:6]
+            z_pos += 1
+        p, q, r, phi, theta, psi = meas.T
+        # ---- flight software (FlightSoftware.step, cascade / open-loop)
+        refs = reference(t) if reference is not None else {}
+        if "z_ref" in refs or "x_ref" in refs or "y_ref" in refs:
+            raise ConfigError(f"scenario '{scenario}' sets a position set-point, which the batched runner does not "
+                              "vectorise", field="reference", got=sorted(refs))
+        phi_ref = refs.get("phi_ref", 0.0)
+        theta_ref = refs.get("theta_ref", 0.0)
+        psi_ref = refs.get("psi_ref")
+        if psi_ref is None:
+            if psi_latched is None:
+                psi_latched = psi.copy()
+            psi_ref = psi_latched
+        u_col = float(refs.get("u_col", u_col_default))
+        u_lat, p_ref = att.roll.step(phi_ref, phi, p)
+        u_lon, q_ref = att.pitch.step(theta_ref, theta, q)
+        u_yaw, r_ref = att.yaw.step(psi_ref, psi, r)
+        if ol:
+            nan = np.full(n, math.nan)
+            if "roll" in ol:
+                u_lat, p_ref = refs.get("u_lat", 0.0) + 0.0 + sup.step(phi, p), nan
+            if "pitch" in ol:
+                u_lon, q_ref = refs.get("u_lon", 0.0) + 0.0 + sup.step(theta, q), nan
+            if "yaw" in ol:
+                u_yaw, r_ref = np.full(n, refs.get("u_yaw", 0.0) + 0.0), nan
+        u_lat = np.clip(u_lat, -lim, lim)
+        u_lon = np.clip(u_lon, -lim, lim)
+        u_yaw = np.clip(u_yaw, -YAW_U_LIMIT_PCT, YAW_U_LIMIT_PCT)
+        u_col = min(max(u_col, mx.out_min), mx.out_max)
+        # mixer: the scalar mixer's sum in its order, then the per-rotor clip
+        rotor = np.empty((n, len(mrows)))
+        for j, (a, b_, c, e) in enumerate(mrows):
+            rotor[:, j] = u_col * a + u_lat * b_ + u_lon * c + u_yaw * e
+        np.clip(rotor, mx.out_min, mx.out_max, out=rotor)
+        ctrl[:, thrust] = v.command_to_ctrl(rotor[:, : len(thrust)])
+        # ---- ground truth and log
+        att_true = euler_deg_from_quats(xquat[:, airframe])
+        R = xmat[:, airframe].reshape(n, 3, 3)
+        w_loc = np.einsum("nji,nj->ni", R, cvel[:, airframe, 0:3])
+        for name, val in (("theta", theta), ("theta_ref", theta_ref), ("q", q), ("q_ref", q_ref), ("u_lon", u_lon),
+                          ("phi", phi), ("phi_ref", phi_ref), ("p", p), ("p_ref", p_ref), ("u_lat", u_lat),
+                          ("psi", psi), ("r", r), ("u_yaw", u_yaw), ("u_col", u_col),
+                          ("phi_true", att_true[:, 0]), ("theta_true", att_true[:, 1]),
+                          ("p_true", w_loc[:, 0] * RAD2DEG), ("q_true", -w_loc[:, 1] * RAD2DEG)):
+            tr[name][k] = val
+        # ---- wind at the tick (Simulator.tick -> disturbances -> _apply_wind)
+        if windy:
+            w_common = np.zeros(3)
+            for dist in wind_dists:
+                w_common += dist.wind_ned(t) * _NED_TO_ZUP
+            w = w_common + wind_sim_zup
+            if wind_dists:
+                w_ned = w * _NED_TO_ZUP
+                tr["wind_u"][k], tr["wind_v"][k], tr["wind_w"][k] = w_ned.T
+            opt_wind[:] = w
+            wb = np.einsum("nji,nj->ni", R, w)
+            ctrl[:, aero["hx"]] = wb[:, 0:1]
+            ctrl[:, aero["hy"]] = wb[:, 1:2]
+            ctrl[:, aero["inflow"]] = wb[:, 2:3]
+        # ---- physics: one control period, sensors at the tick
+        try:
+            batch.step(ids, nstep=sim.n_substeps, stage=stage_vel)
+        except SimulationError as exc:
+            for i in exc.ids:
+                stopped[int(i)] = f"MuJoCo error at t = {t:.3f} s: {batch.error(int(i))}"
+        # ---- checks (Simulator.check)
+        ang = np.degrees(qpos[:, qadr[0]] + qpos[:, qadr[1]])
+        bad = np.zeros(n, dtype=bool)
+        for wi in _WARNINGS:
+            bad |= batch.warning[:, int(wi), 0] > 0
+        hit = np.abs(ang) >= stop_deg - 0.5
+        new = active & (bad | hit | np.array([s is not None for s in stopped]))
+        if new.any():
+            t_next = t + dt
+            for i in np.flatnonzero(new):
+                if stopped[i] is None:
+                    stopped[i] = (f"MuJoCo warning at t = {t_next:.3f} s (the simulation diverged: NaN/inf or huge "
+                                  "state)" if bad[i] else
+                                  f"{sim.scene.rig_axis} angle {ang[i]:+.1f} deg reached the rig stop "
+                                  f"(+-{stop_deg:g} deg) at t = {t_next:.3f} s")
+                rows[i] = k + 1
+            active &= ~new
+            if not active.any():
+                break
+            ids = np.flatnonzero(active)
+
+    # derived columns, as the scalar loop forms them tick by tick
+    for rate, acc in (("p_true", "p_dot"), ("q_true", "q_dot")):
+        x = tr[rate]
+        tr[acc][0] = 0.0
+        tr[acc][1:] = (x[1:] - x[:-1]) / dt
+    traces = {}
+    kk = np.arange(n_ticks)[:, None]
+    for name, a in tr.items():
+        a[kk >= rows[None, :]] = np.nan
+        traces[name] = np.ascontiguousarray(a.T)
+    info = {"scenario": scenario, "vehicle": v.name, "scene": scene, "duration_s": duration_s, "n": n,
+            "control_dt_s": dt, "physics_dt_s": float(m.opt.timestep), "sensor_noise": noise,
+            "options": ctx.options, "vary": vary_d, "nthread": batch.nthread,
+            "gains": gsets.name if isinstance(gsets, GainSet) else [g.name for g in gsets]}
+    return BatchResult(scenario, v.name, scene, seeds, t_log, traces, rows, stopped, params, info, ctx, setup)
+
+
+__all__ = ["BatchResult", "run_batch", "SCENES", "VARY_KEYS"]
