@@ -3,9 +3,9 @@ randomisation, exact full-state save/restore, bad-action handling and headless r
 
 The environments run the same :class:`~rotorlab.sim.simulator.Simulator` as headless runs: one agent step is
 one flight-software tick (50 Hz), i.e. ``Simulator.tick()`` batching the physics steps (1 kHz) in one
-``mj_step(m, d, nstep)`` call with the command held (zero-order hold). After the tick the derived quantities are
-recomputed with ``mj_forward`` so that the observation is a function of the physics state alone: this is what
-makes :meth:`RotorlabEnv.restore_state` exact (MuJoCo's step leaves sensors one physics step behind the state).
+``mj_step(m, d, nstep)`` call with the command held (zero-order hold). The tick ends with the derived quantities
+(sensors) recomputed for the new state, so the observation is a function of the physics state alone: this is what
+makes :meth:`RotorlabEnv.restore_state` exact.
 
 Domain randomisation (``randomize=`` at ``make`` or in ``reset(options=...)``)
 -------------------------------------------------------------------------------
@@ -218,7 +218,6 @@ class RotorlabEnv(gym.Env):
         effort = self._apply(clipped)
         sim = self.sim
         sim.tick()
-        mujoco.mj_forward(sim.model, sim.data)
         self._k += 1
         reason = sim.check()
         terminated = reason is not None

@@ -18,7 +18,8 @@ AXES = ("roll", "pitch", "yaw")
 
 def euler_deg_from_quat(quat_wxyz) -> np.ndarray:
     """Aerospace (roll, pitch, yaw) in degrees of a body (FLU) orientation in the z-up world."""
-    w, x, y, z = quat_wxyz
+    # plain floats: math on numpy scalars costs several times more, and this runs twice per tick
+    w, x, y, z = quat_wxyz.tolist() if hasattr(quat_wxyz, "tolist") else quat_wxyz
     # rows of the rotation matrix that the angles need
     r00 = 1 - 2 * (y * y + z * z)
     r10 = 2 * (x * y + w * z)

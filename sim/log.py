@@ -30,28 +30,26 @@ class RunLog:
 
     def __init__(self, columns: dict, capacity: int):
         self.units = {TIME_COLUMN: "s", **columns}
-        self._data = {k: np.full(capacity, np.nan) for k in self.units}
+        self._names = list(self.units)
+        self._index = {k: i for i, k in enumerate(self._names)}
+        # row-major buffer: one list comprehension and one row store per tick, the cheapest append in Python
+        self._buf = np.full((capacity, len(self._names)), np.nan)
         self.n = 0
 
     def append(self, t: float, values: dict) -> None:
-        k = self.n
-        self._data[TIME_COLUMN][k] = t
-        data = self._data
-        for name, v in values.items():
-            col = data.get(name)
-            if col is not None:
-                col[k] = v
-        self.n = k + 1
+        get = values.get
+        self._buf[self.n] = [t] + [get(name, np.nan) for name in self._names[1:]]
+        self.n += 1
 
     def __getitem__(self, name: str) -> np.ndarray:
-        return self._data[name][: self.n]
+        return self._buf[: self.n, self._index[name]]
 
     @property
     def columns(self) -> list[str]:
         return list(self.units)
 
     def table(self, meta: dict | None = None) -> pa.Table:
-        arrays = {k: v[: self.n] for k, v in self._data.items()}
+        arrays = {k: np.ascontiguousarray(self._buf[: self.n, i]) for i, k in enumerate(self._names)}
         return pa.table(arrays).replace_schema_metadata(encode_metadata(self.units, meta))
 
     def write(self, path, meta: dict | None = None) -> Path:

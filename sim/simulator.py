@@ -100,6 +100,14 @@ class Simulator:
         self._bearing = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
         self._mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
         self._free = self.scene.name == "free-flight"
+        # views into MjData's buffers, made once: attribute access through the bindings costs microseconds
+        d = self.data
+        self._gyro_v, self._quat_v, self._accel_v = (d.sensordata[self._sens[k]] for k in ("gyro", "imu_quat", "accel")) \
+            if "gyro" in self._sens else (None, None, None)
+        self._qpos_v, self._qvel_v = d.qpos, d.qvel
+        self._wind_v = self.model.opt.wind
+        self._warnings = [(w, d.warning[w]) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
+                                                       mujoco.mjtWarning.mjWARN_BADQPOS)]
         self._gyro_scale = FLU_TO_FRD * RAD2DEG
         self._floor_z = FLOOR_CLEARANCE_M + self.vehicle.body_size_m[2]
         self.wind_world = np.zeros(3)
@@ -126,6 +134,7 @@ class Simulator:
         self._noise_std = np.repeat([imu.gyro_noise_dps, imu.angle_noise_deg, imu.accel_noise_mps2], 3)
         self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
         self.wind_world[:] = 0.0
+        self._wind_v[:] = 0.0  # opt.wind lives in the model, which outlives a run
         for dist in self.disturbances:
             dist.reset(self, np.random.default_rng([self.seed, _stable_hash(dist.name)]))
         mujoco.mj_forward(m, d)
@@ -151,9 +160,7 @@ class Simulator:
 
     def _apply_wind(self) -> None:
         w = self.wind_world
-        self.model.opt.wind[:] = w
-        if not w.any() and not self.data.ctrl[self._inflow].any():
-            return
+        self._wind_v[:] = w
         # rotor sites are aligned with the airframe: wind in body axes drives the inflow and H-force actuators
         R = self.data.xmat[self._airframe].reshape(3, 3) if self._airframe >= 0 else np.eye(3)
         wb = R.T @ w
@@ -171,7 +178,7 @@ class Simulator:
             t = self.time
             for dist in self.disturbances:
                 dist.update(self, t)
-        self._apply_wind()
+            self._apply_wind()
         mujoco.mj_step(self.model, d, nstep=self.n_substeps)
         # mj_step leaves the sensors of the state before its last step; the IMU is sampled at the tick
         mujoco.mj_forward(self.model, d)
@@ -180,8 +187,8 @@ class Simulator:
         """Why the run must stop, or None: NaN, a MuJoCo warning, the rig's stops, a crash or a flip."""
         d, m = self.data, self.model
         # MuJoCo flags (and resets) NaN/inf states through these warnings, so no array scan is needed here
-        for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS):
-            if d.warning[w].number > 0:
+        for w, stat in self._warnings:
+            if stat.number > 0:
                 return f"MuJoCo warning {w.name} at t = {self.time:.3f} s (the simulation diverged: NaN/inf or huge state)"
         if self._bearing >= 0:
             ang = math.degrees(d.qpos[m.jnt_qposadr[self._bearing]] + d.qpos[m.jnt_qposadr[self._mount]])
@@ -202,33 +209,30 @@ class Simulator:
         """IMU readings at this tick in flight-software units, with seeded noise and bias when enabled:
         ``phi, theta, psi`` (deg), ``p, q, r`` (deg/s), ``ax, ay, az`` (m/s^2, body FRD), and for outer loops
         ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s, NED) from the position sensor (truth plus noise-free)."""
-        sd = self.data.sensordata
         # one vector of IMU values in FRD/deg: rates, attitude, specific force
         imu = np.empty(9)
-        imu[0:3] = sd[self._sens["gyro"]] * self._gyro_scale
-        imu[3:6] = euler_deg_from_quat(sd[self._sens["imu_quat"]])
-        imu[6:9] = sd[self._sens["accel"]] * FLU_TO_FRD
+        imu[0:3] = self._gyro_v * self._gyro_scale
+        imu[3:6] = euler_deg_from_quat(self._quat_v)
+        imu[6:9] = self._accel_v * FLU_TO_FRD
         if self.sensor_noise:
             # one draw per tick for all nine channels keeps the stream (and so the log) seed-determined
             imu += self._noise_bias + self._noise_std * self.rng.standard_normal(9)
         p, q, r, phi, theta, psi, ax, ay, az = imu.tolist()
         out = {"phi": phi, "theta": theta, "psi": psi, "p": p, "q": q, "r": r, "ax": ax, "ay": ay, "az": az}
-        if self._airframe >= 0:
-            pos = self.data.xpos[self._airframe]
-            vel = self._airframe_velocity()
-            out.update(x=pos[0], y=-pos[1], z=-pos[2], vx=vel[0], vy=-vel[1], vz=-vel[2])
+        if self._free:
+            # the free joint's qpos/qvel are the airframe origin's world position and velocity
+            x, y, z = self._qpos_v[0:3].tolist()
+            vx, vy, vz = self._qvel_v[0:3].tolist()
+            out.update(x=x, y=-y, z=-z, vx=vx, vy=-vy, vz=-vz)
         return out
-
-    def _airframe_velocity(self) -> np.ndarray:
-        v = np.zeros(6)
-        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._airframe, v, 0)
-        return v[3:]
 
     def true_attitude_deg(self) -> np.ndarray:
         """Airframe (not IMU) roll, pitch, yaw in degrees."""
         return euler_deg_from_quat(self.data.xquat[self._airframe])
 
     def true_rates_dps(self) -> np.ndarray:
+        if self._free:  # the free joint's angular velocity is already in the airframe (FLU) frame
+            return self._qvel_v[3:6] * self._gyro_scale
         v = np.zeros(6)
         mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._airframe, v, 1)
         return np.array([v[0], -v[1], -v[2]]) * RAD2DEG
