@@ -286,9 +286,9 @@ def truth_model(vehicle: str, dt: float = DT_S, slow_rad_s: float = 0.05):
 
     The 1 ms linearisation is converted with the exact ZOH inverse, made minimal, then re-discretised (both
     conversions exact for a ZOH-held input). Pole/zero pairs both slower than ``slow_rad_s`` are dropped: the
-    rig's rate output has a zero at the origin that nearly cancels a slow drift pole (about +0.01 1/s from
-    the finite-difference linearisation); a one-minute record cannot see it and, being unstable, it would
-    make every nu-gap 1 by the winding-number condition alone.
+    rig's free rotation is a pole at the origin that the rate output's zero at the origin cancels, but finite
+    differences leave them a hair apart; left in, a pole on the unit circle decides every nu-gap through the
+    winding-number condition alone, and a one-minute record cannot see it anyway.
     """
     import control as ct
     from rotorlab.lti import c2d_zoh, d2c_zoh
