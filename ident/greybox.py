@@ -30,6 +30,7 @@ import scipy.signal as sig
 import scipy.stats as st
 
 from rotorlab.lti import as_ss, c2d_zoh_delay, is_discrete
+from rotorlab.ident._data import as_columns
 from rotorlab.ident.metrics import vaf
 
 __all__ = [
@@ -278,15 +279,6 @@ class GreyBoxResult:
 
 # -- simulation ---------------------------------------------------------------------------------------
 
-def _as_2d(x, what: str) -> np.ndarray:
-    a = np.asarray(x, dtype=float)
-    if a.ndim == 1:
-        a = a[:, None]
-    if a.ndim != 2:
-        raise ValueError(f"{what} must be (N,) or (N, channels), got shape {a.shape}")
-    return a
-
-
 def _lsim(sysd: ct.StateSpace, u: np.ndarray) -> np.ndarray:
     """Zero-state response of a small discrete system, ``u`` (N, m) -> (N, p).
 
@@ -327,7 +319,7 @@ def simulate_greybox(model: GreyBoxModel, u, dt: float, theta: Mapping[str, floa
 
     ``x0`` is the initial state of the continuous plant (delayed inputs before the record are zero).
     """
-    u2 = _as_2d(u, "u")
+    u2 = as_columns(u, "u")
     sysd = model.discretize(dt, theta)
     y = _lsim(sysd, u2)
     if x0 is not None:
@@ -378,7 +370,7 @@ def simulate_closed_loop(model: GreyBoxModel, controller, r, dt: float,
                          theta: Mapping[str, float] | None = None, feedback_output: int = 0) -> np.ndarray:
     """Closed-loop plant outputs ``(N, p)`` for reference samples ``r`` (loop at rest at the start)."""
     cl = _closed_loop(model.discretize(dt, theta), _controller_d(controller, dt), feedback_output)
-    return _lsim(cl, _as_2d(r, "r"))
+    return _lsim(cl, as_columns(r, "r"))
 
 
 # -- fitting -----------------------------------------------------------------------------------------
@@ -550,7 +542,7 @@ def oe_fit(model: GreyBoxModel, u, y, dt: float, theta0: Mapping[str, float] | N
     -------
     GreyBoxResult
     """
-    u2, y2 = _as_2d(u, "u"), _as_2d(y, "y")
+    u2, y2 = as_columns(u, "u"), as_columns(y, "y")
     if len(u2) != len(y2):
         raise ValueError(f"u has {len(u2)} samples, y has {len(y2)}")
     nx = model.ss().nstates
@@ -600,7 +592,7 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
     -------
     GreyBoxResult
     """
-    r2, y2 = _as_2d(r, "r"), _as_2d(y, "y")
+    r2, y2 = as_columns(r, "r"), as_columns(y, "y")
     if r2.shape[1] != 1:
         raise ValueError("closed-loop fit takes one reference signal")
     if len(r2) != len(y2):
