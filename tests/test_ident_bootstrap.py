@@ -38,27 +38,28 @@ IDENT = functools.partial(pbsid, order=2, past=20, future=10, delay=3, dt=DT)
 def test_band_covers_the_true_response():
     """Pointwise 95 % bands, averaged over independent records: one record's band misses the truth over
     contiguous stretches (neighbouring frequencies are strongly correlated), so coverage is a property of
-    the procedure, checked over several experiments."""
+    the procedure, checked over six experiments of 200 replications each (measured: 0.94 magnitude, 1.0
+    phase; the bound leaves room for the sampling error of six experiments)."""
     w = np.logspace(-1, np.log10(0.9 * np.pi / DT), 80)
     G = model_frf(TRUTH.sys, w)[:, 0, 0]
     cover_mag, cover_ph = [], []
-    for seed in (7, 8, 9):
+    for seed in range(7, 13):
         u, y = _record(seed)
-        res = bootstrap(u, y, IDENT, n_boot=40, seed=seed, progress=False)
-        assert len(res.models) == 40 and res.nominal.method == "pbsid"
+        res = bootstrap(u, y, IDENT, n_boot=200, seed=seed, progress=False)
+        assert len(res.models) == 200 and res.nominal.method == "pbsid"
         b = res.band(w, level=0.95)
         cover_mag.append(np.mean((np.abs(G) >= b["mag_lo"][:, 0, 0]) & (np.abs(G) <= b["mag_hi"][:, 0, 0])))
         ph = np.unwrap(np.angle(G))
         ph += 2 * np.pi * np.round((b["phase"][0, 0, 0] - ph[0]) / (2 * np.pi))
         cover_ph.append(np.mean((ph >= b["phase_lo"][:, 0, 0]) & (ph <= b["phase_hi"][:, 0, 0])))
-    assert np.mean(cover_mag) >= 0.8 and np.mean(cover_ph) >= 0.8
+    assert np.mean(cover_mag) >= 0.9 and np.mean(cover_ph) >= 0.9
     # the band is informative where the PRBS excites: total relative width under 20 % at 5 rad/s
     k = np.argmin(np.abs(w - 5.0))
     assert (b["mag_hi"][k, 0, 0] - b["mag_lo"][k, 0, 0]) / np.abs(G[k]) < 0.2
     # pole cloud around the true poles (continuous time, rad/s)
     pc = res.poles_continuous()
     true_pc = np.log(np.linalg.eigvals(np.asarray(TRUTH.sys.A)).astype(complex)) / DT
-    assert pc.shape == (40, 2)
+    assert pc.shape == (200, 2)
     upper = pc[pc.imag > 0]  # one of each complex pair
     centre = np.median(upper.real) + 1j * np.median(upper.imag)
     spread = np.sqrt(np.mean(np.abs(upper - centre) ** 2))
