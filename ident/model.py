@@ -219,7 +219,7 @@ def state_regressors(A, C, u) -> np.ndarray:
 
 def observability_sequence(A, C, N: int) -> np.ndarray:
     """``O[t] = C A^t`` for ``t = 0..N-1``, shape (N, p, n): the regressors of the initial state."""
-    n, p = A.shape[0], C.shape[0]
+    n = A.shape[0]
     if n > _MAX_TF_ORDER:
         return np.stack([free_response(A, C, e, N) for e in np.eye(n)], axis=2)
     # C A^t = C A^(t-1) A: the t >= 1 terms are the impulse response of (A, A, C)

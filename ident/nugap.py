@@ -57,7 +57,6 @@ def _count(ev, tol):
 def _winding_ok(A1, B1, C1, D1, A2, B2, C2, D2, tol=1e-9) -> bool:
     """Vinnicombe's winding-number condition for continuous-time realisations (argument principle)."""
     n1, n2 = A1.shape[0], A2.shape[0]
-    p = C1.shape[0]
     # G2~(s) = G2(-s)^T = (-A2^T, C2^T, -B2^T, D2^T); F = I + G2~ G1, state [x1; x2].
     A = np.block([[A1, np.zeros((n1, n2))], [C2.T @ C1, -A2.T]])
     B = np.vstack([B1, C2.T @ D1])
@@ -202,7 +201,7 @@ def stability_margin_bpc(P, C) -> float:
     within nu-gap ``< b_{P,C}`` of ``P`` (Vinnicombe).
     """
     P, C = as_ss(P), as_ss(C)
-    m, p = P.ninputs, P.noutputs
+    m = P.ninputs
     dt = P.dt
     Im = ct.ss([], [], [], np.eye(m), dt)
     S = ct.feedback(Im, ct.series(P, C))  # (I + C P)^-1 at the plant input

@@ -6,7 +6,6 @@ import dataclasses
 import math
 from pathlib import Path
 
-import numpy as np
 
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import GainSet, load_gains

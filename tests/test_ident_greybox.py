@@ -2,7 +2,6 @@
 transfer functions, and output-error fits (open loop and indirect closed loop) recovering known parameters
 with honest 95 % confidence intervals."""
 
-import warnings
 
 import numpy as np
 import control as ct

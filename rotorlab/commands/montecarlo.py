@@ -11,7 +11,6 @@ executor; batched in-process MuJoCo stepping (``mujoco.batch``) is not used yet.
 from __future__ import annotations
 
 import dataclasses
-import json
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +40,7 @@ def add_parser(sub):
 def draw(vehicle, vary, seed_seq):
     """Varied vehicle spec, scenario options and run seed of one sample."""
     rng = np.random.default_rng(seed_seq)
-    spec, params, opts = vehicle, {}, {}
+    spec, params = vehicle, {}
     if "mass" in vary:
         params["mass_scale"] = float(rng.uniform(1 - VARY["mass"], 1 + VARY["mass"]))
         spec = dataclasses.replace(spec, mass_kg=spec.mass_kg * params["mass_scale"])
