@@ -41,18 +41,22 @@ class PoseTrack:
         self.tendon_path = np.full((capacity, m.ntendon, max(self._maxwrap, 1), 3), np.nan)
         self.tendon_wrapnum = np.zeros((capacity, m.ntendon), dtype=int)
         self.n = 0
+        # views into MjData's buffers, taken once: every attribute access through the bindings costs about 1 us
+        d = sim.data
+        self._d_xpos, self._d_xquat, self._d_site_xpos, self._d_site_xmat = d.xpos, d.xquat, d.site_xpos, d.site_xmat
+        self._d_force = d.actuator_force
 
     def record(self, sim) -> None:
         k = self.n
         d = sim.data
         self.t[k] = d.time
-        self.xpos[k] = d.xpos
-        self.xquat[k] = d.xquat
+        self.xpos[k] = self._d_xpos
+        self.xquat[k] = self._d_xquat
         if len(self._thrust):
-            self.rotor_pos[k] = d.site_xpos[self._sites]
-            self.rotor_axis[k] = d.site_xmat[self._sites].reshape(-1, 3, 3)[:, :, 2]
+            self.rotor_pos[k] = self._d_site_xpos[self._sites]
+            self.rotor_axis[k] = self._d_site_xmat[self._sites].reshape(-1, 3, 3)[:, :, 2]
             # thrust actuators act along +z of their site; actuator_force is that force, N
-            self.thrust_N[k] = d.actuator_force[self._thrust]
+            self.thrust_N[k] = self._d_force[self._thrust]
         self.wind[k] = sim.wind_world
         if self.model.ntendon:
             # wrap_xpos holds the path points of every tendon, 3 numbers each (MuJoCo stores it as nwrap x 6)
