@@ -104,7 +104,9 @@ class Simulator:
         d = self.data
         self._gyro_v, self._quat_v, self._accel_v = (d.sensordata[self._sens[k]] for k in ("gyro", "imu_quat", "accel")) \
             if "gyro" in self._sens else (None, None, None)
-        self._qpos_v, self._qvel_v = d.qpos, d.qvel
+        self._qpos_v, self._qvel_v, self._ctrl_v = d.qpos, d.qvel, d.ctrl
+        af = max(self._airframe, 0)
+        self._af_xquat, self._af_xmat, self._af_xpos = d.xquat[af], d.xmat[af], d.xpos[af]
         self._wind_v = self.model.opt.wind
         self._warnings = [(w, d.warning[w]) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
                                                        mujoco.mjtWarning.mjWARN_BADQPOS)]
@@ -156,7 +158,7 @@ class Simulator:
     def set_rotor_commands(self, rotor_pct) -> None:
         """Per-rotor commands in %, e.g. from the flight software's mixer or a thrust-stand test."""
         rotor = np.asarray(rotor_pct, dtype=float)[: len(self._thrust)]
-        self.data.ctrl[self._thrust] = self.vehicle.command_to_ctrl(rotor)
+        self._ctrl_v[self._thrust] = self.vehicle.command_to_ctrl(rotor)
 
     def _apply_wind(self) -> None:
         w = self.wind_world
@@ -197,10 +199,10 @@ class Simulator:
                         f"(+-{self.scene.stop_deg:g} deg) at t = {self.time:.3f} s")
         elif self._free:
             # tilt from the body z axis: R[2, 2] = cos(tilt)
-            tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(d.xmat[self._airframe, 8])))))
+            tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(self._af_xmat[8])))))
             if tilt > FREE_FLIGHT_TILT_LIMIT_DEG:
                 return f"tilt {tilt:.0f} deg beyond the divergence limit {FREE_FLIGHT_TILT_LIMIT_DEG:g} deg at t = {self.time:.3f} s"
-            if d.xpos[self._airframe, 2] < self._floor_z:
+            if self._af_xpos[2] < self._floor_z:
                 return f"the vehicle hit the floor at t = {self.time:.3f} s"
         return None
 
@@ -228,7 +230,7 @@ class Simulator:
 
     def true_attitude_deg(self) -> np.ndarray:
         """Airframe (not IMU) roll, pitch, yaw in degrees."""
-        return euler_deg_from_quat(self.data.xquat[self._airframe])
+        return euler_deg_from_quat(self._af_xquat)
 
     def true_rates_dps(self) -> np.ndarray:
         if self._free:  # the free joint's angular velocity is already in the airframe (FLU) frame
