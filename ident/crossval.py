@@ -15,7 +15,7 @@ __all__ = ["select_order"]
 
 
 def select_order(u_id, y_id, u_cv, y_cv, method: str = "moesp", orders=range(1, 7), horizons=(10, 20, 40),
-                 delay: int = 0, dt: float = 1.0, progress: bool = False, **kwargs):
+                 delay: int = 0, dt: float = 1.0, progress: bool = False, accept=None, **kwargs):
     """Grid search of model order and horizon by VAF on a cross-validation record.
 
     Parameters
@@ -30,6 +30,10 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "moesp", orders=range(1, 
         MOESP: block rows ``s``. PBSID: ``(past, future)`` pairs, or ints meaning ``past = future``.
     delay, dt, kwargs
         Passed to the identification function.
+    accept : callable, optional
+        ``accept(model) -> bool``: models it rejects are scored and listed (``accepted: False``) but never
+        chosen, e.g. models without a continuous-time ZOH equivalent when the model will be analysed in
+        continuous time.
 
     Returns
     -------
@@ -57,9 +61,11 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "moesp", orders=range(1, 
         except DataError:
             continue
         v = vaf(y_cv, simulate(m, u_cv, x0="estimate", y=y_cv))
-        table.append({"settings": dict(m.settings), "vaf_cv": v, "vaf_cv_mean": float(np.mean(v))})
-        if np.mean(v) > best_vaf:
+        ok = accept is None or bool(accept(m))
+        table.append({"settings": dict(m.settings), "vaf_cv": v, "vaf_cv_mean": float(np.mean(v)), "accepted": ok})
+        if ok and np.mean(v) > best_vaf:
             best, best_vaf = m, float(np.mean(v))
     if best is None:
-        raise DataError("select_order: no order/horizon in the grid is valid for these data")
+        raise DataError("select_order: no order/horizon in the grid is valid for these data"
+                        + (" and accepted by `accept`" if accept is not None else ""))
     return best, table

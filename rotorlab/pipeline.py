@@ -280,6 +280,11 @@ def stage_experiments(ctx: _Ctx) -> dict:
 # stage 2: identification
 
 
+def _zoh_invertible(model) -> bool:
+    ev = np.linalg.eigvals(np.asarray(model.sys.A, dtype=float))
+    return not np.any((np.abs(ev.imag) < 1e-9) & (ev.real <= 0))
+
+
 def truth_model(vehicle: str, dt: float = DT_S, slow_rad_s: float = 0.05):
     """The twin's true pitch-rate model on the rig, delay removed, resampled to ``dt``.
 
@@ -395,9 +400,9 @@ def stage_identify(ctx: _Ctx) -> dict:
         save_model(ctx.work / "models" / f"{name}.json", saved if saved is not None else m, vaf=[entry["vaf_cv"]],
                    input=["u_lon"], output=["q"], units={"u_lon": "%", "q": "deg/s"})
 
-    def greybox(name, r):
+    def greybox(name, r, **info):
         # stored continuous with its physical delay (the exact model); scored through its exact 50 Hz image
-        extra = {"params": {k: float(v) for k, v in r.params.items()}, "delay_s": float(r.delay_s)}
+        extra = {"params": {k: float(v) for k, v in r.params.items()}, "delay_s": float(r.delay_s), **info}
         record(name, _discrete_model(r.sys, r.delay_s, name, _jsonable(r.params)), saved=r, extra=extra)
 
     if closed:
@@ -411,11 +416,13 @@ def stage_identify(ctx: _Ctx) -> dict:
     for name in ctx.progress(steps, "identify"):
         if name == "pi-moesp":
             m, table = select_order(u_id, y_id, u_cv, y_cv, "moesp", s["moesp_orders"], s["moesp_horizons"],
-                                    delay=d, dt=DT_S, instruments="u")
+                                    delay=d, dt=DT_S, instruments="u", accept=_zoh_invertible)
             record(name, m, table)
         elif name == "pbsid":
+            # the nominal model is analysed in continuous time downstream (H-inf matching, the cascade's exact
+            # angle integration), so only models with a ZOH continuous equivalent may be chosen
             m, table = select_order(u_id, y_id, u_cv, y_cv, "pbsid", s["pbsid_orders"],
-                                    [tuple(h) for h in s["pbsid_horizons"]], delay=d, dt=DT_S)
+                                    [tuple(h) for h in s["pbsid_horizons"]], delay=d, dt=DT_S, accept=_zoh_invertible)
             record(name, m, table)
         elif name == "lms-kung":
             h, _ = lms_batch(u_id, y_id, taps=s["lms_taps"], delay=d)
@@ -430,8 +437,16 @@ def stage_identify(ctx: _Ctx) -> dict:
             greybox(name, oe_fit(rate_tf_structure(delay_s=d * DT_S), u_id, y_id, DT_S, estimate_x0=True,
                                  restarts=s["oe_restarts"], rng=ctx.seed))
         elif name == "hinf-match":
-            greybox(name, hinf_match(models["pbsid"], rate_tf_structure(delay_s=d * DT_S),
-                                     restarts=s["hinf_restarts"], rng=ctx.seed))
+            # The published matching converts the black box to continuous time by ZOH inversion, which a model
+            # with a pole on the negative real axis does not have (subspace fits sometimes place a small spurious
+            # fast pole there): the first black box in this order that has one is matched, and named.
+            source = next((k for k in ("pbsid", "pi-moesp", "lms-kung") if k in models and _zoh_invertible(models[k])),
+                          None)
+            if source is None:
+                skipped[name] = "skipped: no black-box model has a ZOH continuous equivalent (negative real poles)"
+                continue
+            greybox(name, hinf_match(models[source], rate_tf_structure(delay_s=d * DT_S),
+                                     restarts=s["hinf_restarts"], rng=ctx.seed), black_box=source)
         elif name == "oe-closed-loop":
             K = tuhh_loop_controller(load_gains(gains_path(ctx.vehicle, "standard"))["pitch"])
             greybox(name, oe_fit_closed_loop(_tuhh_structure("pitch"), K, logs["id"]["theta_ref"], y_id, DT_S,
@@ -701,6 +716,7 @@ def _mc_plant(m):
 def _transfer(ctx, sets, nominal, W):
     """Test-bed gains on the in-flight model: nominal tracking IAE on each model and h_lim with the flight
     model (the paper's 'test-bed tuning transfers to flight' claim)."""
+    from rotorlab.errors import DataError
     from rotorlab.tune import h_lim
 
     p = ctx.upstream("identify") / "models" / "pbsid-flight.json"
@@ -713,7 +729,11 @@ def _transfer(ctx, sets, nominal, W):
         a, b = _step_metrics(nominal, gs["pitch"])["iae"], _step_metrics(flight, gs["pitch"])["iae"]
         transfer[name] = {"iae_testbed": a, "iae_flight": b,
                           "loss_pct": 100.0 * (b - a) / a if math.isfinite(a) and math.isfinite(b) else None}
-        hl[name] = float(h_lim(Wf, control_sensitivity_cascade(flight, gs["pitch"])))
+        try:
+            hl[name] = float(h_lim(Wf, control_sensitivity_cascade(flight, gs["pitch"])))
+        except DataError as exc:  # the set does not stabilise the flight model: no robustness to speak of
+            hl[name] = None
+            transfer[name]["flight_loop"] = str(exc)
     return transfer, hl
 
 

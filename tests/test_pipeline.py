@@ -1,5 +1,5 @@
-"""The end-to-end pipeline (tiny level: every stage, seconds each) checked against the libraries called
-directly, plus resume after an interruption, disk-full safety and bad inputs."""
+"""The end-to-end pipeline (the README's --quick level, every stage) checked against the libraries called
+directly, plus resume after an interruption, disk-full safety and bad inputs (those on the tiny level)."""
 
 import errno
 import json
@@ -12,12 +12,14 @@ from rotorlab import pipeline
 from rotorlab.errors import UnknownNameError
 from rotorlab.pipeline import PipelineError, PipelineOptions, load_identified, run_pipeline, stage_dir
 
+LEVEL = "quick"  # what `rotorlab pipeline --quick` runs
+
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("pl") / "run"
     lines = []
-    run_pipeline(PipelineOptions(vehicle="anteos-p2a2", out=out, level="tiny", seed=3, executor="local", workers=2,
+    run_pipeline(PipelineOptions(vehicle="anteos-p2a2", out=out, level=LEVEL, seed=3, executor="local", workers=2,
                                  progress=False), log=lines.append)
     return out, lines
 
@@ -163,7 +165,7 @@ def test_resume_after_an_interrupted_stage_reproduces_the_numbers(run, tmp_path,
         raise KeyboardInterrupt
 
     monkeypatch.setitem(pipeline.STAGE_FUNCS, "tune", boom)
-    opts = PipelineOptions(vehicle="anteos-p2a2", out=out, level="tiny", seed=3, executor="serial", progress=False)
+    opts = PipelineOptions(vehicle="anteos-p2a2", out=out, level=LEVEL, seed=3, executor="serial", progress=False)
     with pytest.raises(KeyboardInterrupt):
         run_pipeline(opts, log=lambda s: None)
     assert not stage_dir(out, "tune").exists()  # nothing half done looks finished
@@ -196,7 +198,7 @@ def test_disk_full_during_a_stage_leaves_no_final_file(run, tmp_path, monkeypatc
         return real(path, text)
 
     monkeypatch.setattr(report.atomic, "write_text", full)
-    opts = PipelineOptions(vehicle="anteos-p2a2", out=out, level="tiny", seed=3, executor="serial", progress=False)
+    opts = PipelineOptions(vehicle="anteos-p2a2", out=out, level=LEVEL, seed=3, executor="serial", progress=False)
     with pytest.raises(OSError, match="No space left"):
         run_pipeline(opts, log=lambda s: None)
     assert not (stage_dir(out, "report") / "report.md").exists()
