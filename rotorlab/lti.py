@@ -21,6 +21,7 @@ __all__ = [
     "delay_ss",
     "with_io_delay",
     "d2c_zoh",
+    "negative_real_poles",
     "c2d_zoh",
     "pid_tf",
     "pid2_ss",
@@ -165,6 +166,13 @@ def c2d_zoh(sys, dt: float) -> ct.StateSpace:
     return ct.c2d(as_ss(sys), dt, method="zoh")
 
 
+def negative_real_poles(sysd) -> np.ndarray:
+    """Poles of a discrete model on the non-positive real axis: a model with any has no ZOH continuous
+    equivalent (see :func:`d2c_zoh`)."""
+    ev = np.linalg.eigvals(np.asarray(as_ss(sysd).A, dtype=float))
+    return ev[(np.abs(ev.imag) < 1e-9) & (ev.real <= 0)].real
+
+
 def d2c_zoh(sysd) -> ct.StateSpace:
     """Inverse of the zero-order-hold discretisation, through the matrix logarithm of the augmented
     ``[[A, B], [0, I]]`` matrix (exact when A has no eigenvalues on the negative real axis)."""
@@ -174,11 +182,10 @@ def d2c_zoh(sysd) -> ct.StateSpace:
     dt = float(sysd.dt)
     n, m = sysd.nstates, sysd.ninputs
     A, B = np.asarray(sysd.A, float), np.asarray(sysd.B, float)
-    ev = np.linalg.eigvals(A)
-    bad = ev[(np.abs(ev.imag) < 1e-9) & (ev.real <= 0)]
+    bad = negative_real_poles(sysd)
     if bad.size:
         raise ValueError(
-            f"d2c_zoh: the model has poles on the non-positive real axis {bad.real}; "
+            f"d2c_zoh: the model has poles on the non-positive real axis {bad}; "
             "it has no continuous-time ZOH equivalent (try a different order or remove the delay first)"
         )
     M = np.zeros((n + m, n + m))

@@ -281,8 +281,9 @@ def stage_experiments(ctx: _Ctx) -> dict:
 
 
 def _zoh_invertible(model) -> bool:
-    ev = np.linalg.eigvals(np.asarray(model.sys.A, dtype=float))
-    return not np.any((np.abs(ev.imag) < 1e-9) & (ev.real <= 0))
+    from rotorlab.lti import negative_real_poles
+
+    return negative_real_poles(model.sys).size == 0
 
 
 def truth_model(vehicle: str, dt: float = DT_S, slow_rad_s: float = 0.05):
