@@ -43,8 +43,6 @@ __all__ = [
     "simulate_closed_loop",
 ]
 
-DELAY_NAMES = ("delay_s", "Td")
-
 
 @dataclass(frozen=True)
 class Param:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 
 
@@ -165,10 +164,4 @@ def _gain_dict(gs: GainSet | None) -> dict | None:
     return {ax: {"outer": g.outer.as_dict(), "inner": g.inner.as_dict()} for ax, g in gs.axes.items()}
 
 
-def finite(x) -> float | None:
-    """JSON-friendly float (None for NaN/inf)."""
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
-__all__ = ["RunResult", "run_scenario", "resolve_gains", "make_flight_software", "BASE_COLUMNS", "finite"]
+__all__ = ["RunResult", "run_scenario", "resolve_gains", "make_flight_software", "BASE_COLUMNS"]

@@ -1,16 +1,21 @@
 """Disturbances acting through the physics, with their logged ground truth."""
 
+import importlib
+import pkgutil
+import re
+
 import numpy as np
 import pytest
 
 from rotorlab.errors import ConfigError
 from rotorlab.gains import parse_gains
 from rotorlab.scenes import HOVER_HEIGHT_M
+from rotorlab.sim.disturbances import DISTURBANCES, CosineGust, Disturbance, DrydenWind, MeanWind
 from rotorlab.sim.disturbances.dryden import DrydenTurbulence
 from rotorlab.sim.disturbances.gust import one_minus_cosine
-from rotorlab.sim.disturbances.recirculation_torque import RecirculationMoment
-from rotorlab.sim.disturbances.rope import RopePull
-from rotorlab.sim.disturbances.turbulence import turbulence_axes_ned
+from rotorlab.sim.disturbances.recirculation_moment import RecirculationMoment
+from rotorlab.sim.disturbances.rope_pull import RopePull
+from rotorlab.sim.disturbances.dryden_wind import turbulence_axes_ned
 from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.simulator import Simulator, _stable_hash
 
@@ -88,3 +93,50 @@ def test_same_seed_gives_bit_identical_logs():
     for col in ("theta", "q", "u_lon", "x", "wind_u", "wind_w"):
         assert np.array_equal(a.log[col], b.log[col], equal_nan=True), col
     assert not np.array_equal(a.log["wind_u"], c.log["wind_u"])
+
+
+# one example per registered disturbance and a scene that hosts it: a new entry in DISTURBANCES needs one here
+_EXAMPLES = {
+    "mean-wind": (lambda: MeanWind(3.0, 0.0), "pitch-rig"),
+    "dryden": (lambda: DrydenWind(3.0, HOVER_HEIGHT_M, 1.0), "free-flight"),
+    "cosine-gust": (lambda: CosineGust(0.0, 0.5, 4.0), "pitch-rig"),
+    "recirculation": (lambda: RecirculationMoment(0.3, 1.0), "pitch-rig"),
+    "rope": (lambda: RopePull(pull_deg=-20.0, t_pull_s=0.0, ramp_s=0.2, length_m=1.0, slack_m=0.05), "pitch-rig"),
+}
+
+
+def _snake(name: str) -> str:
+    return re.sub(r"(?<!^)(?=[A-Z])", "_", name).lower()
+
+
+def test_registry_holds_every_disturbance_in_a_file_named_after_it():
+    import rotorlab.sim.disturbances as pkg
+
+    defined = set()
+    for info in pkgutil.iter_modules(pkg.__path__):
+        mod = importlib.import_module(f"{pkg.__name__}.{info.name}")
+        for obj in vars(mod).values():
+            # concrete disturbances: the ones with a name of their own (the base classes keep the default one)
+            if (isinstance(obj, type) and issubclass(obj, Disturbance) and obj.__module__ == mod.__name__
+                    and obj is not Disturbance and "name" in vars(obj)):
+                defined.add(obj)
+                assert info.name == _snake(obj.__name__), (info.name, obj.__name__)
+    assert defined == set(DISTURBANCES.values())
+    assert all(cls.name == name for name, cls in DISTURBANCES.items())
+    assert set(pkg.__all__) >= {cls.__name__ for cls in defined}
+    assert set(_EXAMPLES) == set(DISTURBANCES)
+
+
+@pytest.mark.parametrize("name", sorted(DISTURBANCES))
+def test_every_registered_disturbance_acts_on_the_physics_and_logs_its_columns(name):
+    make, scene = _EXAMPLES[name]
+    quiet = Simulator(scene, "anteos-p2a2", sensor_noise=False)
+    dist = make()
+    assert isinstance(dist, DISTURBANCES[name])
+    sim = Simulator(scene, "anteos-p2a2", sensor_noise=False, disturbances=[dist])
+    for s in (quiet, sim):
+        for _ in range(25):
+            s.tick()
+    assert set(dist.values(sim)) == set(dist.columns)
+    # the state left the undisturbed trajectory: the disturbance reached the physics
+    assert np.max(np.abs(sim.data.qvel - quiet.data.qvel)) > 1e-4

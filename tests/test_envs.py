@@ -106,7 +106,7 @@ def test_save_restore_is_exact(env_id, kw):
 
 
 def test_save_restore_is_exact_through_a_rope_pull():
-    rope = pytest.importorskip("rotorlab.sim.disturbances.rope")
+    rope = pytest.importorskip("rotorlab.sim.disturbances.rope_pull")
     env = _quiet("rotorlab/PitchRig-v0", task="regulation", disturbances=[rope.RopePull(t_pull_s=0.6, ramp_s=0.3)])
     env.reset(seed=0)
     acts = np.full((90, 1), 2.0)

@@ -132,7 +132,7 @@ def test_view_makes_a_recording_from_a_plain_run_folder(tmp_path, capsys):
 
 
 def test_rope_is_recorded_as_a_line_between_its_sites(tmp_path):
-    rope_mod = pytest.importorskip("rotorlab.sim.disturbances.rope")
+    rope_mod = pytest.importorskip("rotorlab.sim.disturbances.rope_pull")
     import types
 
     from rotorlab.sim.log import RunLog

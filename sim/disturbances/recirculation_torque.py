@@ -1,8 +1,12 @@
-"""Rotor-wake recirculation on an indoor test-bed as a moment on the airframe about the rig axis.
+"""Rotor-wake recirculation: a slow random moment disturbance of an indoor test-bed.
 
-The seeded low-frequency moment comes from :class:`rotorlab.sim.disturbances.recirculation.RecirculationTorque`
-(one axis: the rig's); it is written into ``xfrc_applied`` of the airframe each control tick (held over the
-tick, like the wind). Positive moments raise the rig angle (the aerospace sign of that axis).
+Physical reading: in a closed room the rotors' downwash hits the floor and walls and comes back into the rotor
+disks as an unsteady, uneven inflow. Each rotor's thrust then wanders slowly and differently, which the vehicle
+feels as random roll/pitch/yaw moments with most of their power below a couple of hertz (reference 000 lists
+"aerodynamic disturbances due to rotors wake recirculation in closed indoor test area" on the test-bed results).
+The model is what such a disturbance looks like to the loop, not a flow simulation: independent Gaussian
+white noise per axis through a Butterworth low-pass (default 4th order, 1.5 Hz), scaled so the stationary RMS
+is the stated one.
 """
 
 from __future__ import annotations
@@ -10,55 +14,59 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy import signal
 
-from rotorlab.errors import ConfigError, RotorlabError
-from rotorlab.scenes import RIG_AXES
-from rotorlab.sim.disturbances.base import Disturbance
-from rotorlab.sim.disturbances.recirculation import RecirculationTorque
+from rotorlab.errors import ConfigError
 
 
-class RecirculationMoment(Disturbance):
-    """Recirculation moment on the rig.
+class RecirculationTorque:
+    """Seeded low-frequency moment disturbance.
 
     Parameters
     ----------
-    rms_Nm : float
-        Stationary RMS of the moment, N m.
-    duration_s : float
-        Run length the record must cover, s.
+    rms_Nm : float or (n_axes,)
+        Stationary RMS per axis, N m.
     cutoff_hz : float
-        Low-pass corner of the moment, Hz.
+        Low-pass corner, Hz (power above about ``2 cutoff_hz`` is negligible).
+    order : int
+        Butterworth order.
+    n_axes : int
+        Number of independent axes (3: roll, pitch, yaw).
+    seed, rng : int or numpy.random.Generator
     """
 
-    name = "recirculation"
-    scenes = tuple(RIG_AXES)
-    columns = {"recirc_moment": "N m"}
+    def __init__(self, rms_Nm, cutoff_hz: float = 1.5, order: int = 4, n_axes: int = 3, seed=None,
+                 rng: np.random.Generator | None = None):
+        rms = np.broadcast_to(np.asarray(rms_Nm, dtype=float), (n_axes,)).copy()
+        if np.any(rms < 0):
+            raise ConfigError(field="rms_Nm", expected="values >= 0 N m", got=rms.tolist())
+        if not cutoff_hz > 0 or order < 1:
+            raise ConfigError(field="cutoff_hz/order", expected="cutoff_hz > 0 and order >= 1", got=(cutoff_hz, order))
+        self.rms_Nm = rms
+        self.cutoff_hz = float(cutoff_hz)
+        self.order = int(order)
+        self.rng = rng if rng is not None else np.random.default_rng(seed)
 
-    def __init__(self, rms_Nm: float, duration_s: float, cutoff_hz: float = 1.5):
-        RecirculationTorque(rms_Nm, cutoff_hz, n_axes=1)  # validates
-        if not duration_s > 0:
-            raise ConfigError(field="duration_s", expected="the run length in s (> 0)", got=duration_s)
-        self.rms_Nm, self.duration_s, self.cutoff_hz = float(rms_Nm), float(duration_s), float(cutoff_hz)
+    def filter_sos(self, dt: float) -> np.ndarray:
+        """The discrete low-pass (second-order sections) used at sample time ``dt``."""
+        nyq = 0.5 / dt
+        if not self.cutoff_hz < nyq:
+            raise ConfigError(field="cutoff_hz", expected=f"below the Nyquist frequency {nyq} Hz", got=self.cutoff_hz)
+        return signal.butter(self.order, self.cutoff_hz, btype="low", fs=1.0 / dt, output="sos")
 
-    def reset(self, sim, rng) -> None:
-        self._dt = sim.control_dt_s
-        n = int(math.ceil(self.duration_s / self._dt)) + 1
-        self._m = RecirculationTorque(self.rms_Nm, self.cutoff_hz, n_axes=1, rng=rng).generate(n, self._dt)[:, 0]
-        self._axis = np.asarray(RIG_AXES[sim.scene.name][1], dtype=float)
-        self._body = sim._airframe
-
-    def moment(self, t: float) -> float:
-        k = int(round(t / self._dt))
-        if k >= len(self._m):
-            raise RotorlabError(f"the recirculation record is {self.duration_s:g} s long; the run asked for "
-                                f"t = {t:.3f} s (give the disturbance the run's duration)")
-        return float(self._m[k])
-
-    def update(self, sim, t: float) -> None:
-        sim.data.xfrc_applied[self._body, 3:6] += self.moment(t) * self._axis
-
-    def values(self, sim) -> dict:
-        return {"recirc_moment": self.moment(sim.time)}
-
-
-__all__ = ["RecirculationMoment"]
+    def generate(self, n: int, dt: float) -> np.ndarray:
+        """``n`` samples every ``dt`` s, shape ``(n, n_axes)``, N m."""
+        n = int(n)
+        if n < 1 or not dt > 0:
+            raise ConfigError(field="n/dt", expected="n >= 1 and dt > 0", got=(n, dt))
+        sos = self.filter_sos(dt)
+        # the filter's white-noise gain sqrt(sum h^2) from a long impulse response (it decays within
+        # ~order / cutoff_hz seconds), so the scale gives exactly the stated stationary RMS
+        n_imp = int(math.ceil(50.0 * self.order / self.cutoff_hz / dt))
+        imp = np.zeros(n_imp)
+        imp[0] = 1.0
+        gain = math.sqrt(float(np.sum(signal.sosfilt(sos, imp) ** 2)))
+        n_burn = n_imp // 5
+        e = self.rng.standard_normal((n + n_burn, self.rms_Nm.size))
+        y = signal.sosfilt(sos, e, axis=0)[n_burn:]
+        return y * (self.rms_Nm / gain)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from rotorlab.scenes import HOVER_HEIGHT_M
 from rotorlab.sim.disturbances.mean_wind import MeanWind
-from rotorlab.sim.disturbances.turbulence import DrydenWind
+from rotorlab.sim.disturbances.dryden_wind import DrydenWind
 from rotorlab.sim.scenarios import Context, Setup, _metrics
 from rotorlab.sim.scenarios.prbs_closed import signal
 

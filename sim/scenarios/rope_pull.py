@@ -13,7 +13,7 @@ Options
 
 from __future__ import annotations
 
-from rotorlab.sim.disturbances.rope import RopePull
+from rotorlab.sim.disturbances.rope_pull import RopePull
 from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 
 NAME = "rope-pull"

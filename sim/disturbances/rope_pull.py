@@ -101,7 +101,6 @@ class RopePull(Disturbance):
         mujoco.mj_kinematics(m, scratch)
         self._pulled_pos = scratch.site_xpos[tip] - self.length_m * down
         d.mocap_pos[self._mocap] = self._slack_pos
-        self._pulled = 0.0
 
     def anchor_position(self, t: float) -> tuple[np.ndarray, float]:
         """Anchor position (world, m) for the control period starting at ``t``, and the pull fraction 0..1."""
@@ -111,7 +110,7 @@ class RopePull(Disturbance):
         return self._slack_pos + f * (self._pulled_pos - self._slack_pos), f
 
     def update(self, sim, t: float) -> None:
-        pos, self._pulled = self.anchor_position(t)
+        pos, _ = self.anchor_position(t)
         sim.data.mocap_pos[self._mocap] = pos
 
     def values(self, sim) -> dict:
