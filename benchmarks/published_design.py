@@ -12,7 +12,7 @@ import numpy as np
 import control as ct
 
 from rotorlab.gains import load_gains
-from rotorlab.tune.cascade import cascade_plant, cascade_structure, generalised_plant, plant_model
+from rotorlab.tune.cascade import N_CON, N_MEAS, cascade_plant, cascade_structure, generalised_plant, plant_model
 from rotorlab.tune.goals import CrossoverBand, evaluate, objective, tune_cascade
 from rotorlab.tune.hinfstruct import closed_loop
 from rotorlab.tune.margins import crossover_frequencies, margins
@@ -29,12 +29,12 @@ def analyse(spec, gains, model):
     wc_i = crossover_frequencies(CrossoverBand("q", 1, 2).loop_tf(Gp, K))
     m = margins(CrossoverBand("u", 1, 2).loop_tf(Gp, K))
     t = np.arange(0, 6, spec.dt)
-    T = closed_loop(generalised_plant(Gp, inputs=("theta_ref",), outputs=("theta",)), 4, 2, K)
+    T = closed_loop(generalised_plant(Gp, inputs=("theta_ref",), outputs=("theta",)), N_MEAS, N_CON, K)
     y = ct.step_response(T, t).outputs.ravel()
     rise = t[np.argmax(y >= 0.9)] - t[np.argmax(y >= 0.1)]
     out = np.flatnonzero(np.abs(y - 1) > 0.02)
     settle = t[out[-1] + 1] if out.size and out[-1] + 1 < t.size else np.nan
-    D = closed_loop(generalised_plant(Gp, inputs=("d_u",), outputs=("theta",)), 4, 2, K)
+    D = closed_loop(generalised_plant(Gp, inputs=("d_u",), outputs=("theta",)), N_MEAS, N_CON, K)
     gust = np.max(np.abs(ct.step_response(D, t).outputs.ravel()))
     obj = objective(evaluate(spec, gains, [model]))
     fmt = lambda a: "/".join(f"{x:.2f}" for x in a) or "none"

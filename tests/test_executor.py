@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rotorlab.executor import ExecutorError, get_executor, task_seeds
-from rotorlab.pipeline import run_experiment
+from rotorlab.pipeline.stages.experiments import run_experiment
 
 
 def _square(x):

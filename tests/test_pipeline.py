@@ -1,6 +1,7 @@
 """The end-to-end pipeline (the README's --quick level, every stage) checked against the libraries called
 directly, plus resume after an interruption, disk-full safety and bad inputs (those on the tiny level)."""
 
+import dataclasses
 import errno
 import json
 import shutil
@@ -10,7 +11,9 @@ import pytest
 
 from rotorlab import pipeline
 from rotorlab.errors import UnknownNameError
-from rotorlab.pipeline import PipelineError, PipelineOptions, load_identified, run_pipeline, stage_dir
+from rotorlab.pipeline import PipelineError, PipelineOptions, RunFolder, load_identified, run_pipeline, stage_dir
+from rotorlab.pipeline.models import mc_plant
+from rotorlab.tune.cascade import cascade_mc, control_sensitivity_cascade
 
 LEVEL = "quick"  # what `rotorlab pipeline --quick` runs
 
@@ -57,7 +60,7 @@ def test_every_stage_runs_and_reports(run):
 
 
 def report_rows(s):
-    from rotorlab.report import headline_rows
+    from rotorlab.pipeline.stages.report import headline_rows
 
     return headline_rows(s)
 
@@ -104,8 +107,7 @@ def test_report_numbers_match_the_libraries(run):
     out = run[0]
     s = _summary(out)
     models = stage_dir(out, "report") / "models"
-    cv = pipeline._read_log(stage_dir(out, "experiments") / "cv.parquet")
-    val = pipeline._read_log(stage_dir(out, "experiments") / "val.parquet")
+    cv, val = RunFolder(out).experiment_log("cv"), RunFolder(out).experiment_log("val")
     truth, _, _ = load_model(models / "truth.json")
     for method in ("pi-moesp", "pbsid", "oe-greybox"):
         m = load_identified(models / f"{method}.json")
@@ -118,9 +120,9 @@ def test_report_numbers_match_the_libraries(run):
     G = load_identified(models / "pbsid.json")
     for name in ("standard", "tuned"):
         gs = load_gains(stage_dir(out, "report") / "gains" / f"{name}.toml")
-        V = pipeline.control_sensitivity_cascade(pipeline._mc_plant(G), gs["pitch"])
+        V = control_sensitivity_cascade(mc_plant(G), gs["pitch"])
         assert s["h_lim"][name] == pytest.approx(h_lim(W, V), rel=1e-6)
-    mc = montecarlo(G.sys, W, functools.partial(pipeline._cascade_mc, axis_gains=gs["pitch"], delay_s=G.delay * 0.02),
+    mc = montecarlo(G.sys, W, functools.partial(cascade_mc, axis_gains=gs["pitch"], delay_s=G.delay * 0.02),
                     s["h_lim"]["tuned"], n=s["montecarlo"]["tuned"]["n"],
                     seed=np.random.SeedSequence([3, list(s["gains"]).index("tuned")]), progress=False)
     assert s["montecarlo"]["tuned"]["fraction_unstable"] == mc.fraction_unstable
@@ -141,7 +143,7 @@ def test_control_sensitivity_is_the_additive_uncertainty_channel():
     dt = 0.02
     G = ct.c2d(ct.ss(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])), dt, "zoh")
     g = load_gains(gains_path("anteos-p2a2", "standard"))["pitch"]
-    V = pipeline.control_sensitivity_cascade(PlantModel(G, 0.06), g)
+    V = control_sensitivity_cascade(PlantModel(G, 0.06), g)
     Ci = pid_tf(g.inner.kp, g.inner.ki, g.inner.kd, g.inner.tf, dt)
     Co = pid_tf(g.outer.kp, 0, g.outer.kd, g.outer.tf, dt)
     I = ct.tf([dt / 2, dt / 2], [1, -1], dt)
@@ -164,7 +166,7 @@ def test_resume_after_an_interrupted_stage_reproduces_the_numbers(run, tmp_path,
         (ctx.work / "half-written.json").write_text("{")
         raise KeyboardInterrupt
 
-    monkeypatch.setitem(pipeline.STAGE_FUNCS, "tune", boom)
+    monkeypatch.setitem(pipeline.REGISTRY, "tune", dataclasses.replace(pipeline.REGISTRY["tune"], run=boom))
     opts = PipelineOptions(vehicle="anteos-p2a2", out=out, level=LEVEL, seed=3, executor="serial", progress=False)
     with pytest.raises(KeyboardInterrupt):
         run_pipeline(opts, log=lambda s: None)
@@ -185,7 +187,7 @@ def test_resume_after_an_interrupted_stage_reproduces_the_numbers(run, tmp_path,
 
 
 def test_disk_full_during_a_stage_leaves_no_final_file(run, tmp_path, monkeypatch):
-    from rotorlab import report
+    from rotorlab.pipeline.stages import report
 
     out = tmp_path / "run"
     shutil.copytree(run[0], out)

@@ -8,7 +8,7 @@ import pytest
 from rotorlab import lti
 from rotorlab.errors import ConfigError
 from rotorlab.gains import load_gains
-from rotorlab.tune.cascade import cascade_plant, cascade_structure, generalised_plant, plant_model
+from rotorlab.tune.cascade import N_CON, N_MEAS, cascade_plant, cascade_structure, generalised_plant, plant_model
 from rotorlab.tune.goals import CrossoverBand, evaluate, objective, tune_cascade
 from rotorlab.tune.hinfstruct import closed_loop
 from rotorlab.tune.spec import load_spec, parse_spec
@@ -43,7 +43,7 @@ def test_loops_match_hand_built_transfer_functions():
     ratio = lti.freqresp(Gp, [0.01])[0, 1, 0] / lti.freqresp(Gp, [0.01])[0, 0, 0]
     assert abs(ratio * 1j * 0.01 - 1) < 1e-3
     # closed loop is stable and tracks theta_ref with zero steady-state error
-    T = closed_loop(generalised_plant(Gp, inputs=("theta_ref",), outputs=("theta",)), 4, 2, K)
+    T = closed_loop(generalised_plant(Gp, inputs=("theta_ref",), outputs=("theta",)), N_MEAS, N_CON, K)
     assert lti.is_stable(T) and abs(lti.freqresp(T, [1e-4])[0, 0, 0] - 1) < 1e-4
 
 

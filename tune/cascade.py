@@ -24,12 +24,17 @@ import control as ct
 import numpy as np
 
 from rotorlab import lti
-from rotorlab.errors import UnknownNameError
+from rotorlab.errors import DataError, UnknownNameError
 from rotorlab.gains import AxisGains, GainSet, LoopGains
 from rotorlab.tune.blocks import PID2, Structure
+from rotorlab.tune.hinfstruct import closed_loop
 
 __all__ = ["PlantModel", "plant_model", "cascade_plant", "generalised_plant", "cascade_structure",
-           "gains_to_theta", "theta_to_gains", "INPUTS", "OUTPUTS", "LOOP_POINTS", "PARAM_NAMES"]
+           "gains_to_theta", "theta_to_gains", "closed_cascade", "control_sensitivity_cascade", "rate_angle_plant",
+           "trapezoid", "cascade_mc", "tuhh_loop_controller", "INPUTS", "OUTPUTS", "LOOP_POINTS", "PARAM_NAMES", "N_MEAS", "N_CON",
+           "DT_S"]
+
+DT_S = 0.02  # published flight-software rate (50 Hz) of both ANTEOS vehicles and TUHH: the default design rate
 
 INPUTS = ("theta_ref", "d_u", "n_q", "n")
 OUTPUTS = ("theta", "q", "u", "u_ctrl", "q_ref", "e", "theta_meas", "q_meas")
@@ -41,6 +46,9 @@ LOOP_POINTS = {
 }
 # closed-loop sensitivity at a point: injection -> signal after the injection
 SENSITIVITY = {"u": ("d_u", "u"), "q": ("n_q", "q_meas"), "theta": ("n", "theta_meas")}
+# the cascade controller of :func:`cascade_structure` reads N_MEAS measurements (theta_ref, theta_meas, q_ref,
+# q_meas) and drives N_CON controls (q_ref_c, u_c): the partition of :func:`generalised_plant` for closed_loop
+N_MEAS, N_CON = 4, 2
 PARAM_NAMES = ("outer.kp", "outer.kd", "outer.tf", "outer.b", "outer.c",
                "inner.kp", "inner.ki", "inner.kd", "inner.tf", "inner.b", "inner.c")
 
@@ -94,7 +102,7 @@ def generalised_plant(Gp: ct.StateSpace, opened=(), inputs=INPUTS, outputs=OUTPU
     A, B, C, D = (np.asarray(M, float) for M in (Gp.A, Gp.B, Gp.C, Gp.D))
     n = A.shape[0]
     idx_w = {k: i for i, k in enumerate(INPUTS)}
-    nw, nuc = len(INPUTS), 2
+    nw, nuc = len(INPUTS), N_CON
     # every signal as a row over [x, w, uc] (uc = [q_ref_c, u_c])
     def row(x=None, w=None, uc=None):
         r = np.zeros(n + nw + nuc)
@@ -167,3 +175,75 @@ def check_signal(name: str, kind: str) -> str:
     if name not in valid:
         raise UnknownNameError(f"{kind} signal", name, valid)
     return name
+
+
+def closed_cascade(model, axis_gains, inputs, outputs, dt: float = DT_S, Gp=None):
+    """Closed published cascade around ``model`` (:class:`PlantModel`) with the gains ``axis_gains``: the
+    generalised plant (:func:`cascade_plant`, :func:`generalised_plant`) closed by its cascade structure, all
+    closed-loop states kept. Signal names as in :data:`INPUTS` / :data:`OUTPUTS`. ``Gp`` (u -> [q; theta],
+    delay included) replaces ``cascade_plant(model, dt)`` when given."""
+    S = cascade_structure(dt, axis_gains)
+    K = S.ss(gains_to_theta(S, axis_gains))
+    Gp = cascade_plant(model, dt) if Gp is None else Gp
+    return closed_loop(generalised_plant(Gp, inputs=tuple(inputs), outputs=tuple(outputs)), N_MEAS, N_CON, K)
+
+
+def trapezoid(dt: float) -> ct.StateSpace:
+    """``[1; I(z)]`` with ``I = dt/2 (z+1)/(z-1)``: a sampled rate and its trapezoidal integral (the angle)."""
+    return ct.ss([[1.0]], [[1.0]], [[0.0], [dt]], [[1.0], [dt / 2]], dt)
+
+
+def rate_angle_plant(G, delay_s: float, dt: float = DT_S) -> ct.StateSpace:
+    """``u -> [q; theta]`` for a discrete rate model ``G`` with the angle as the trapezoidal integral of the
+    rate and the input delay in whole samples. Used for the Monte Carlo plants ``G_nom + W_delta Delta``:
+    :func:`cascade_plant` integrates exactly through ``d2c_zoh``, which has no answer when a fast pole of
+    ``W_delta`` or ``Delta`` sits at z ~ 0 (e.g. a 2000 rad/s root: e^(-40) at 50 Hz)."""
+    return lti.with_io_delay(ct.series(lti.as_ss(G), trapezoid(dt)), delay_s)
+
+
+def control_sensitivity_cascade(model, axis_gains, dt: float = DT_S) -> ct.StateSpace:
+    """``V_nom`` of ``h_lim`` for the cascade around a discrete rate model (:class:`PlantModel`): the transfer
+    from the additive-uncertainty signal ``w`` at the rate-plant output to the plant input ``u``, both loops
+    closed (ref. 000, robust stability analysis).
+
+    ``w`` adds to the rate ``q`` and, through the angle's integral, to ``theta``: in the generalised plant
+    that is the sensor-noise inputs ``n_q`` (added to the rate the controller sees) and ``n`` (added to the
+    angle), driven by ``[1; I(z)] w`` with the trapezoidal integral ``I = dt/2 (z+1)/(z-1)``. The plant's own
+    angle is the same trapezoidal integral of its rate (:func:`rate_angle_plant`), as in the Monte Carlo
+    plants, so the Monte Carlo at ``h_lim`` tests exactly the small-gain bound (``cascade_plant``'s exact ZOH
+    integral differs near Nyquist). The channel ``n -> u`` has a zero at z = 1 (a constant angle offset needs
+    no steady command: the rate plant has no integrator), so ``V`` is stable; the cancelled integrator mode is
+    removed with ``control.minreal`` after the full closed loop has been checked for internal stability.
+    """
+    T = closed_cascade(None, axis_gains, ("n_q", "n"), ("u",), dt, Gp=rate_angle_plant(model.G, model.delay_s, dt))
+    if not lti.is_stable(T):
+        raise DataError(f"the nominal cascade is unstable (spectral abscissa {lti.spectral_abscissa(T):.4g})")
+    V = ct.minreal(ct.series(trapezoid(dt), T), tol=1e-7, verbose=False)
+    if not lti.is_stable(V):
+        raise DataError("V_nom kept the angle integrator: the angle-noise channel has no zero at z = 1")
+    return V
+
+
+def cascade_mc(G, axis_gains, delay_s: float, dt: float = DT_S) -> ct.StateSpace:
+    """Monte Carlo closed-loop builder (:func:`rotorlab.tune.montecarlo.montecarlo`): uncertain discrete rate
+    plant ``G`` -> inputs (theta_ref, d_u), outputs (theta, u)."""
+    return closed_cascade(None, axis_gains, ("theta_ref", "d_u"), ("theta", "u"), dt,
+                          Gp=rate_angle_plant(G, delay_s, dt))
+
+
+def tuhh_loop_controller(axis_gains, dt: float = DT_S) -> ct.StateSpace:
+    """The standard cascade flown in the TUHH closed-loop campaign as a 2-input controller ``u = K [r; q]``
+    (``r`` = angle set-point in deg, ``q`` = measured rate in deg/s), the form
+    :func:`rotorlab.ident.oe_fit_closed_loop` takes with the rate as feedback output.
+
+    The flight software feeds the outer PD with the IMU angle; the closed-loop fit feeds back the rate only,
+    so the angle is rebuilt from it with the trapezoidal integrator ``dt/2 (z+1)/(z-1)`` (the integral of
+    the sampled rate, second-order accurate; the grey-box plant's own angle state is the exact integral).
+    """
+    o, i = axis_gains.outer, axis_gains.inner
+    Co = lti.as_ss(lti.pid2_ss(o.kp, 0.0, o.kd, o.tf, o.b, o.c, dt))
+    Ci = lti.as_ss(lti.pid2_ss(i.kp, i.ki, i.kd, i.tf, i.b, i.c, dt))
+    Co = ct.ss(Co.A, Co.B, Co.C, Co.D, dt, inputs=["r", "theta"], outputs=["q_ref"], name="outer")
+    Ci = ct.ss(Ci.A, Ci.B, Ci.C, Ci.D, dt, inputs=["q_ref", "q"], outputs=["u"], name="inner")
+    integ = ct.ss(ct.tf([dt / 2, dt / 2], [1.0, -1.0], dt), inputs=["q"], outputs=["theta"], name="angle")
+    return ct.interconnect([Co, Ci, integ], inplist=["r", "q"], outlist=["u"], dt=dt)

@@ -100,7 +100,7 @@ class Goal:
 
 def _channel(Gp, opened, frm, to, **kw):
     P = cas.generalised_plant(Gp, opened, inputs=(frm,), outputs=(to,))
-    return Channel(P, 4, 2, **kw)
+    return Channel(P, cas.N_MEAS, cas.N_CON, **kw)
 
 
 @dataclasses.dataclass
@@ -148,13 +148,13 @@ class CrossoverBand(Goal):
     def channels(self, Gp, dt):
         P = self._open(Gp)
         nyq = math.pi / dt if dt else 1e3 * self.wc_max
-        return [Channel(P, 4, 2, mode="min", band_rad_s=(self.wc_min / 100, self.wc_min), hard=self.hard,
-                        name=self.label + " (low)", npoints=150),
-                Channel(P, 4, 2, mode="max", band_rad_s=(self.wc_max, nyq), hard=self.hard,
+        return [Channel(P, cas.N_MEAS, cas.N_CON, mode="min", band_rad_s=(self.wc_min / 100, self.wc_min),
+                        hard=self.hard, name=self.label + " (low)", npoints=150),
+                Channel(P, cas.N_MEAS, cas.N_CON, mode="max", band_rad_s=(self.wc_max, nyq), hard=self.hard,
                         name=self.label + " (high)", npoints=150)]
 
     def loop_tf(self, Gp, K):
-        return -closed_loop(self._open(Gp), 4, 2, K)
+        return -closed_loop(self._open(Gp), cas.N_MEAS, cas.N_CON, K)
 
     def detail(self, Gp, K):
         from rotorlab.tune.margins import crossover_frequencies
@@ -231,7 +231,7 @@ class Margins(Goal):
         from rotorlab.tune.margins import margins
 
         cut, inj, meas = cas.LOOP_POINTS[self.point]
-        L = -closed_loop(cas.generalised_plant(Gp, cut, inputs=(inj,), outputs=(meas,)), 4, 2, K)
+        L = -closed_loop(cas.generalised_plant(Gp, cut, inputs=(inj,), outputs=(meas,)), cas.N_MEAS, cas.N_CON, K)
         m = margins(L, w=_detail_grid(Gp))
         return f"GM {m.gm_db:.1f} dB, PM {m.pm_deg:.1f} deg, disk alpha {m.disk_alpha:.2f}"
 
@@ -247,7 +247,7 @@ class Poles(Goal):
         return []
 
     def value(self, Gp, K):
-        A = np.asarray(closed_loop(cas.generalised_plant(Gp), 4, 2, K).A, float)
+        A = np.asarray(closed_loop(cas.generalised_plant(Gp), cas.N_MEAS, cas.N_CON, K).A, float)
         lam = np.linalg.eigvals(A)
         dt = float(Gp.dt) if lti.is_discrete(Gp) else 0.0
         if dt:
@@ -292,7 +292,7 @@ def evaluate(spec, gains, models) -> list[GoalResult]:
     K = S.ss(th)
     out = []
     for m, Gp in _models_plants(models, spec.dt):
-        stable = lti.is_stable(closed_loop(cas.generalised_plant(Gp), 4, 2, K))
+        stable = lti.is_stable(closed_loop(cas.generalised_plant(Gp), cas.N_MEAS, cas.N_CON, K))
         # every goal's channels in one problem: their peaks come from one batched evaluation
         per_goal = [(g, g.channels(Gp, spec.dt)) for g in spec.goals if not isinstance(g, Poles)]
         chans = [c for _, cs in per_goal for c in cs]
@@ -354,7 +354,7 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
     channels, stab = [], []
     poles = None
     for m, Gp in _models_plants(models, spec.dt):
-        stab.append((cas.generalised_plant(Gp), 4, 2))
+        stab.append((cas.generalised_plant(Gp), cas.N_MEAS, cas.N_CON))
         for g in spec.goals:
             channels += g.channels(Gp, spec.dt)
             if isinstance(g, Poles):

@@ -59,7 +59,7 @@ def draw(vehicle, vary, seed_seq):
 
 def run_sample(task: dict) -> dict:
     """One Monte Carlo run (picklable task): flat metrics plus the drawn parameters."""
-    from rotorlab.report import flatten_metrics
+    from rotorlab.pipeline.stages.report import flatten_metrics
     from rotorlab.sim.runner import run_scenario
 
     spec, params = draw(task["vehicle"], task["vary"], task["seed_seq"])

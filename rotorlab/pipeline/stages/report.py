@@ -1,4 +1,4 @@
-"""The pipeline's report: ``report.md`` and ``report.html`` (same content), PNG figures (matplotlib Agg),
+"""Stage 6, report: the pipeline's report: ``report.md`` and ``report.html`` (same content), PNG figures (matplotlib Agg),
 ``summary.json`` (every number in the report), the identified models, the gain sets and, when
 :mod:`rotorlab.sim.rerun_log` is available, rerun recordings of the validation runs.
 
@@ -12,14 +12,22 @@ from __future__ import annotations
 import html
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 
 import numpy as np
+import pyarrow.parquet as pq
+from scipy.signal import welch
 
-from rotorlab import atomic
+from rotorlab import __version__, atomic
+from rotorlab.gains import save_gains
+from rotorlab.lti import d2c_zoh, freqresp
+from rotorlab.pipeline.runfolder import Stage, StageContext, read_log
+from rotorlab.pipeline.settings import DT_S
+from rotorlab.sim.log import RunLog
 
-__all__ = ["write_report", "flatten_metrics", "compare_sets", "claims", "headline_rows", "HEADLINE"]
+__all__ = ["STAGE", "write_report", "flatten_metrics", "compare_sets", "claims", "headline_rows", "HEADLINE"]
 
 PUBLISHED = {
     "anteos-p2a2": {"moesp_best": "n=4, p=40", "pbsid_best": "n=5, p/f=11/7", "nugap_testbed_flight": 0.0741,
@@ -113,6 +121,7 @@ def claims(summary: dict, tuned: str) -> list[dict]:
 
 
 def _plt():
+    # imported on first figure: matplotlib is slow to import and must be switched to Agg before pyplot
     import matplotlib
 
     matplotlib.use("Agg")
@@ -128,12 +137,8 @@ def _save(fig, path: Path) -> str:
     return f"figures/{path.name}"
 
 
-def _fig_spectrum(ctx, figs: Path):
-    from scipy.signal import welch
-
-    from rotorlab.pipeline import DT_S, _read_log
-
-    log = _read_log(ctx.upstream("experiments") / "id.parquet")
+def _fig_spectrum(ctx: StageContext, figs: Path):
+    log = ctx.run.experiment_log("id")
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 3.5))
     for col, lab in (("u_lon", "input u_lon [%]"), ("q", "output q [deg/s]")):
@@ -144,14 +149,10 @@ def _fig_spectrum(ctx, figs: Path):
     return _save(fig, figs / "prbs_spectrum.png")
 
 
-def _fig_bode(ctx, figs: Path, ident: dict):
-    from rotorlab.ident.modelio import load_model
-    from rotorlab.lti import freqresp
-    from rotorlab.pipeline import load_identified
-
+def _fig_bode(ctx: StageContext, figs: Path, ident: dict):
     plt = _plt()
     fig, (am, ap) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    rep = ctx.upstream("bootstrap") / "replicas.npz"
+    rep = ctx.run.replicas_path()
     if rep.exists():
         z = np.load(rep)
         w = z["w_rad_s"]
@@ -159,13 +160,11 @@ def _fig_bode(ctx, figs: Path, ident: dict):
         ap.fill_between(w, np.degrees(z["phase_lo"]), np.degrees(z["phase_hi"]), color="0.8")
     else:
         w = np.logspace(-1, np.log10(140), 200)
-    mdir = ctx.upstream("identify") / "models"
-    truth, _, _ = load_model(mdir / "truth.json")
+    truth = ctx.run.truth()
     for name in list(ident["models"]) + ["pbsid-flight", "truth"]:
-        p = mdir / f"{name}.json"
-        if not p.exists():
+        if not ctx.run.model_path(name).exists():
             continue
-        sys = truth if name == "truth" else load_identified(p).sys
+        sys = truth if name == "truth" else ctx.run.identified(name).sys
         G = freqresp(sys, w)[:, 0, 0]
         style = dict(color="k", lw=2.2, ls="--") if name == "truth" else {}
         am.loglog(w, np.abs(G), label=name, **style)
@@ -175,11 +174,8 @@ def _fig_bode(ctx, figs: Path, ident: dict):
     return _save(fig, figs / "bode.png")
 
 
-def _fig_poles(ctx, figs: Path):
-    from rotorlab.ident.modelio import load_model
-    from rotorlab.lti import d2c_zoh
-
-    rep = ctx.upstream("bootstrap") / "replicas.npz"
+def _fig_poles(ctx: StageContext, figs: Path):
+    rep = ctx.run.replicas_path()
     if not rep.exists():
         return None
     z = np.load(rep)
@@ -187,8 +183,7 @@ def _fig_poles(ctx, figs: Path):
     fig, ax = plt.subplots(figsize=(6, 4.5))
     pc = z["poles_c"].ravel()
     ax.plot(pc.real, pc.imag, ".", ms=3, alpha=0.4, label="bootstrap poles")
-    truth, _, _ = load_model(ctx.upstream("identify") / "models" / "truth.json")
-    tp = np.linalg.eigvals(np.asarray(d2c_zoh(truth).A, float))
+    tp = np.linalg.eigvals(np.asarray(d2c_zoh(ctx.run.truth()).A, float))
     tp = tp[np.abs(tp) < 200]
     ax.plot(tp.real, tp.imag, "kx", ms=9, mew=2, label="twin truth (|s| < 200)")
     ax.axvline(0, color="0.5", lw=0.8)
@@ -197,8 +192,8 @@ def _fig_poles(ctx, figs: Path):
     return _save(fig, figs / "poles.png")
 
 
-def _fig_montecarlo(ctx, figs: Path, sets):
-    p = ctx.upstream("tune") / "montecarlo.npz"
+def _fig_montecarlo(ctx: StageContext, figs: Path, sets):
+    p = ctx.run.montecarlo_path()
     if not p.exists():
         return None
     z = np.load(p)
@@ -220,11 +215,8 @@ def _fig_montecarlo(ctx, figs: Path, sets):
     return _save(fig, figs / "montecarlo.png")
 
 
-def _fig_scenario(ctx, figs: Path, scenario: str, sets, col="theta", ref="theta_ref", fname=None):
-    from rotorlab.pipeline import _read_log
-
-    logs = {s: ctx.upstream("validate") / "logs" / f"{scenario}__{s}.parquet" for s in sets}
-    logs = {s: _read_log(p) for s, p in logs.items() if p.exists()}
+def _fig_scenario(ctx: StageContext, figs: Path, scenario: str, sets, col="theta", ref="theta_ref", fname=None):
+    logs = {s: ctx.run.validation_log(scenario, s) for s in sets if ctx.run.validation_log_path(scenario, s).exists()}
     if not logs:
         return None
     plt = _plt()
@@ -256,19 +248,18 @@ def _table(header, rows) -> list[str]:
     return out
 
 
-def write_report(ctx) -> dict:
-    """Report stage of :mod:`rotorlab.pipeline`: writes into ``ctx.work`` and returns the summary."""
-    from rotorlab import __version__
-
-    exp, ident, boot = ctx.result("experiments"), ctx.result("identify"), ctx.result("bootstrap")
-    tune, val = ctx.result("tune"), ctx.result("validate")
+def write_report(ctx: StageContext) -> dict:
+    """Report stage of :mod:`rotorlab.pipeline`: reads the run folder, writes into ``ctx.work`` and returns
+    the summary."""
+    exp, ident, boot = ctx.run.result("experiments"), ctx.run.result("identify"), ctx.run.result("bootstrap")
+    tune, val = ctx.run.result("tune"), ctx.run.result("validate")
     figs = ctx.work / "figures"
     figs.mkdir()
     sets = list(tune["gains"])
     tuned = "tuned" if "tuned" in sets else (next((s for s in sets if s.startswith("optimal")), None))
     validation = {sc: {s: flatten_metrics(m) for s, m in per.items()} for sc, per in val["validation"].items()}
     summary = {
-        "vehicle": ctx.vehicle, "seed": ctx.seed, "level": ctx.s["level"], "rotorlab_version": __version__,
+        "vehicle": ctx.vehicle, "seed": ctx.seed, "level": ctx.settings["level"], "rotorlab_version": __version__,
         "experiments": exp, "delay_samples": ident["delay_samples"],
         "models": {k: {kk: vv for kk, vv in m.items() if kk != "grid"} for k, m in ident["models"].items()},
         "model_grids": {k: m.get("grid") for k, m in ident["models"].items() if m.get("grid")},
@@ -301,8 +292,8 @@ def write_report(ctx) -> dict:
             fig_paths[key] = p
     summary["figures"] = fig_paths
     # artefacts next to the report
-    shutil.copytree(ctx.upstream("identify") / "models", ctx.work / "models")
-    shutil.copy2(ctx.upstream("bootstrap") / "w_delta.json", ctx.work / "models" / "w_delta.json")
+    shutil.copytree(ctx.run.models_dir(), ctx.work / "models")
+    shutil.copy2(ctx.run.w_delta_path(), ctx.work / "models" / "w_delta.json")
     _write_gains(ctx, sets)
     summary["recordings"] = _recordings(ctx, sets, summary)
     md = _markdown(summary)
@@ -313,32 +304,24 @@ def write_report(ctx) -> dict:
             "claims": [{k: c.get(k) for k in ("claim", "holds")} for c in summary["claims"]]}
 
 
-def _write_gains(ctx, sets):
-    from rotorlab.gains import save_gains
-    from rotorlab.pipeline import _gain_sets
-
-    for name, gs in _gain_sets(ctx.vehicle, ctx.upstream("tune") / "tuned.toml").items():
+def _write_gains(ctx: StageContext, sets):
+    for name, gs in ctx.run.gain_sets().items():
         if name in sets:
             save_gains(gs, ctx.work / "gains" / f"{name}.toml")
 
 
-def _recordings(ctx, sets, summary) -> dict:
+def _recordings(ctx: StageContext, sets, summary) -> dict:
     """Rerun recordings (.rrd) of the validation runs when the rerun logger exists (time series + scene)."""
-    from rotorlab.sim.log import RunLog
+    # imported here: the rerun SDK is heavy and only this step of the report needs it
     from rotorlab.sim.rerun_log import record_run
 
-    from rotorlab.pipeline import _read_log
-
     out = {}
-    logdir = ctx.upstream("validate") / "logs"
-    paths = sorted(logdir.glob("*.parquet")) if logdir.exists() else []
-    limit = ctx.s.get("record_runs")
+    paths = ctx.run.validation_log_paths()
+    limit = ctx.settings.get("record_runs")
     for p in paths[:limit] if limit is not None else paths:
-        import pyarrow.parquet as pq
-
         meta = json.loads(pq.read_schema(p).metadata[b"rotorlab"])
         units = json.loads(pq.read_schema(p).metadata[b"rotorlab.units"])
-        cols = _read_log(p)
+        cols = read_log(p)
         log = RunLog({k: u for k, u in units.items() if k != "t"}, len(cols["t"]))
         for i in range(len(cols["t"])):
             log.append(cols["t"][i], {k: cols[k][i] for k in cols if k != "t"})
@@ -439,7 +422,7 @@ def _markdown(s: dict) -> str:
     if "spectrum" in s["figures"]:
         L += ["", f"![PRBS spectrum]({s['figures']['spectrum']})"]
     L += ["", "## 2. Identification", "",
-          f"Estimated input delay: {s['delay_samples']} samples ({s['delay_samples'] * 0.02:.2f} s; published 0.06 s). "
+          f"Estimated input delay: {s['delay_samples']} samples ({s['delay_samples'] * DT_S:.2f} s; published 0.06 s). "
           "nu-gap is to the twin's true linearised model (rig, delay removed, resampled to 50 Hz).", ""]
     L += _table(["method", "order", "settings", "VAF cv [%]", "VAF val [%]", "nu-gap to truth"],
                 [[k, m["order"], _settings(m["settings"]), _f(m["vaf_cv"], "{:.2f}"), _f(m["vaf_val"], "{:.2f}"),
@@ -530,8 +513,6 @@ def _settings(st: dict) -> str:
 
 def _html(md: str, title: str) -> str:
     """The same content as report.md in HTML (tables, headings, images, bold; no external renderer needed)."""
-    import re
-
     def inline(t):
         t = html.escape(t)
         t = re.sub(r"!\[([^\]]*)\]\(([^)]+)\)", r'<img alt="\1" src="\2" style="max-width:100%">', t)
@@ -566,3 +547,7 @@ def _html(md: str, title: str) -> str:
              "td,th{border:1px solid #bbb;padding:2px 6px;font-size:90%}")
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>rotorlab report: {html.escape(title)}</title>"
             f"<style>{style}</style></head><body>\n" + "\n".join(out) + "\n</body></html>\n")
+
+
+STAGE = Stage("report", upstream=("experiments", "identify", "bootstrap", "tune", "validate"),
+              settings=("record_runs",), run=write_report)

@@ -1,0 +1,71 @@
+"""What a pipeline run was asked (:class:`PipelineOptions`) and the sizes and grids it implies
+(:func:`settings_for`, part of every stage hash)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from rotorlab.errors import RotorlabError
+from rotorlab.tune.cascade import DT_S
+
+__all__ = ["FORMAT_VERSION", "DT_S", "LEVELS", "PipelineError", "PipelineOptions", "settings_for"]
+
+FORMAT_VERSION = 1  # run-folder format: a folder written by another format is refused, never mixed
+
+# DT_S (imported): the published flight-software and identification sample time, 0.02 s
+
+_LEVELS = {
+    # campaign lengths (s): identification PRBS (three concatenated segments), cross-validation,
+    # closed-loop validation, in-flight PRBS
+    "full": dict(id_s=120.0, cv_s=40.0, val_s=30.0, flight_s=90.0, moesp_orders=[2, 3, 4, 5, 6],
+                 moesp_horizons=[20, 30, 40], pbsid_orders=[2, 3, 4, 5, 6], pbsid_horizons=[[11, 7], [15, 10],
+                 [20, 10]], lms_orders=[2, 3, 4, 5], lms_taps=60, n_boot=1000, n_mc=1000, tune_starts=4,
+                 validation_s={}, record_runs=None, hinf_restarts=3, oe_restarts=2),
+    # quick: half the campaign, the published best settings plus one alternative per grid, 50 bootstrap
+    # replications, 100 Monte Carlo samples, one tuning start, shorter hover
+    "quick": dict(id_s=60.0, cv_s=20.0, val_s=20.0, flight_s=60.0, moesp_orders=[2, 4], moesp_horizons=[40],
+                  pbsid_orders=[2, 5], pbsid_horizons=[[11, 7]], lms_orders=[2, 4], lms_taps=50, n_boot=50,
+                  n_mc=100, tune_starts=1, validation_s={"hover": 24.0}, record_runs=4, hinf_restarts=1,
+                  oe_restarts=0),
+    "tiny": dict(id_s=24.0, cv_s=10.0, val_s=8.0, flight_s=20.0, moesp_orders=[4], moesp_horizons=[20],
+                 pbsid_orders=[2], pbsid_horizons=[[11, 7]], lms_orders=[2], lms_taps=40, n_boot=8, n_mc=20,
+                 tune_starts=1, validation_s={"setpoint": 7.0, "gust": 5.0, "rope-pull": 6.0, "hover": 8.0},
+                 record_runs=1, hinf_restarts=0, oe_restarts=0),
+}
+LEVELS = tuple(_LEVELS)
+
+
+class PipelineError(RotorlabError):
+    """The pipeline cannot run as asked (incompatible run folder, bad option)."""
+
+
+@dataclasses.dataclass
+class PipelineOptions:
+    """What ``rotorlab pipeline`` was asked. ``level``: 'full', 'quick' or 'tiny' (tests)."""
+
+    vehicle: str = "anteos-p2a2"
+    out: Path = Path("pipeline-run")
+    level: str = "full"
+    seed: int = 0
+    executor: str = "local"
+    workers: int | None = None
+    progress: bool = True
+    n_boot: int | None = None
+    n_mc: int | None = None
+
+
+def settings_for(level: str, n_boot: int | None = None, n_mc: int | None = None) -> dict:
+    """Effective sizes and grids of a run; part of every stage hash.
+
+    ``full`` follows the published campaign and grids; ``quick`` keeps the grids tiny but includes the
+    published best settings; ``tiny`` is for tests (seconds per stage, every stage exercised).
+    """
+    if level not in _LEVELS:
+        raise PipelineError(f"unknown level '{level}'; valid: {', '.join(LEVELS)}")
+    s = dict(_LEVELS[level], level=level)
+    if n_boot is not None:
+        s["n_boot"] = int(n_boot)
+    if n_mc is not None:
+        s["n_mc"] = int(n_mc)
+    return s
