@@ -1,5 +1,6 @@
-"""Excitation signals for identification experiments: random-hold PRBS, the published ANTEOS campaign,
-log sweeps, doublets and 3-2-1-1 multisteps, and a spectrum check of how much power lands in a band.
+"""Excitation signals for identification experiments: random-hold PRBS (and its exact expected spectrum),
+the published ANTEOS campaign and its design for a target band, log sweeps, doublets and 3-2-1-1 multisteps,
+and a spectrum check of how much power lands in a band.
 
 Used by both the simulator (to fly the experiments) and the identification library (to design them), so it
 imports neither; numpy only (scipy.signal for the Welch PSD inside :func:`spectrum_check`).
@@ -18,6 +19,10 @@ from rotorlab.errors import ConfigError
 __all__ = [
     "ANTEOS_CAMPAIGN",
     "prbs",
+    "prbs_psd",
+    "band_fraction",
+    "design_campaign",
+    "CampaignDesign",
     "campaign",
     "anteos_segments",
     "sweep",
@@ -91,6 +96,104 @@ def prbs(n_samples: int | None = None, dt: float = 0.02, *, duration_s: float | 
     sign0 = 1.0 if g.random() < 0.5 else -1.0
     levels = sign0 * amplitude * (-1.0) ** np.arange(n_holds)
     return np.repeat(levels, holds)[:n]
+
+
+def _hold_pmf(hold_range_s, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact distribution of the hold length in samples that :func:`prbs` draws:
+    ``max(1, rint(U / dt))`` with ``U`` uniform on ``hold_range_s``. Returns (lengths, probabilities)."""
+    lo, hi = (float(h) / dt for h in hold_range_s)
+    if not 0 < lo <= hi:
+        raise ConfigError("hold range must satisfy 0 < min <= max", field="hold_range_s",
+                          expected="(min_s, max_s)", got=hold_range_s)
+    if hi - lo < 1e-12:
+        return np.array([max(1, int(np.rint(lo)))]), np.array([1.0])
+    k = np.arange(max(0, int(np.floor(lo - 0.5))), int(np.ceil(hi + 0.5)) + 1)
+    p = np.clip(np.minimum(k + 0.5, hi) - np.maximum(k - 0.5, lo), 0.0, None) / (hi - lo)
+    k = np.maximum(k, 1)  # prbs holds at least one sample
+    lengths = np.unique(k[p > 0])
+    return lengths, np.array([p[(k == n)].sum() for n in lengths])
+
+
+def prbs_psd(w_rad_s, dt: float = 0.02, hold_range_s=(0.05, 0.1), amplitude: float = 1.0) -> np.ndarray:
+    """Expected one-sided PSD (unit^2 per rad/s) of :func:`prbs`, exact for the sampled signal.
+
+    The sequence alternates +-A with independent holds of ``N`` samples, so its first difference is a train
+    of alternating +-2A impulses at renewal instants, whose spectrum is ``(4 A^2 / E[N]) Re[(1 - phi) /
+    (1 + phi)]`` with ``phi(W) = E[exp(-j W N)]`` the hold length's characteristic function (W in
+    rad/sample); dividing by ``|1 - exp(-j W)|^2`` undoes the difference. A hold near ``T`` puts the power
+    near ``pi / T`` rad/s (half a period per hold), which is why the hold range sets the excited band.
+    One-sided in rad/s: integrates to ``A^2`` over ``0..pi/dt``, as :func:`spectrum_check` normalises.
+    """
+    w = np.asarray(w_rad_s, dtype=float)
+    # the spectrum is flat near DC, where numerator and denominator both vanish like W^2: evaluating it at
+    # 1e-4 rad/sample keeps eight significant digits (at 1e-9 rounding would decide the ratio)
+    W = np.clip(w * dt, 1e-4, np.pi)
+    n, p = _hold_pmf(hold_range_s, dt)
+    phi = (p[None, :] * np.exp(-1j * W.reshape(-1, 1) * n[None, :])).sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        Sd = 4.0 * amplitude ** 2 / float(n @ p) * np.real((1 - phi) / (1 + phi))
+    Sx = Sd / np.abs(1 - np.exp(-1j * W)) ** 2
+    return (Sx * dt / np.pi).reshape(w.shape)
+
+
+def band_fraction(band_rad_s, dt: float = 0.02, hold_range_s=(0.05, 0.1), n_grid: int = 4000) -> float:
+    """Expected fraction of the power of :func:`prbs` inside ``band_rad_s`` (rad/s), from :func:`prbs_psd`."""
+    lo, hi = (float(b) for b in band_rad_s)
+    if not 0 <= lo < hi <= np.pi / dt:
+        raise ConfigError("band must satisfy 0 <= low < high <= Nyquist", field="band_rad_s",
+                          expected=f"(low, high) within 0..{np.pi / dt:.1f} rad/s", got=band_rad_s)
+    w = np.linspace(lo, hi, n_grid)
+    return float(np.trapezoid(prbs_psd(w, dt, hold_range_s), w))
+
+
+@dataclass(frozen=True)
+class CampaignDesign:
+    """Result of :func:`design_campaign`.
+
+    Attributes
+    ----------
+    holds : tuple of int
+        Index of each segment's hold range into ``hold_ranges_s``.
+    amplitudes_pct : tuple of float
+        Amplitude of each segment.
+    band_rad_s : (float, float)
+    band_fraction : float
+        Expected fraction of the campaign's input power in the band (equal-length segments).
+    range_fractions : tuple of float
+        Expected in-band fraction of each candidate hold range, in table order.
+    """
+
+    holds: tuple
+    amplitudes_pct: tuple
+    band_rad_s: tuple
+    band_fraction: float
+    range_fractions: tuple
+
+
+def design_campaign(band_rad_s, dt: float = ANTEOS_CAMPAIGN["dt_s"], n_segments: int = 3,
+                    amplitudes_pct=ANTEOS_CAMPAIGN["amplitudes_pct"],
+                    hold_ranges_s=ANTEOS_CAMPAIGN["hold_ranges_s"]) -> CampaignDesign:
+    """Choose each segment's hold range from the published table so that the campaign's input power is
+    concentrated in ``band_rad_s`` (ref. 000 aimed its PRBS at the expected dominant attitude dynamics:
+    4-8 rad/s for the P2-A2, 3-7 for the A2-MINI/B).
+
+    Every candidate range's expected in-band fraction comes from the exact spectrum (:func:`band_fraction`).
+    A binary signal's power is ``A^2`` whatever its holds, so the concatenation of equal-length segments has
+    the amplitude^2-weighted mean fraction of its segments: every segment takes the range with the highest
+    in-band fraction, which maximises it (on a tie the shorter holds, which also excite faster dynamics).
+    Amplitudes stay the published ones, one per segment.
+    """
+    amps = tuple(float(a) for a in amplitudes_pct)
+    if int(n_segments) != n_segments or n_segments < 1 or len(amps) < n_segments:
+        raise ConfigError("one amplitude per segment", field="n_segments/amplitudes_pct",
+                          expected=f"1 <= n_segments <= {len(amps)}", got=n_segments)
+    fr = tuple(band_fraction(band_rad_s, dt, h) for h in hold_ranges_s)
+    best = max(range(len(fr)), key=lambda i: (round(fr[i], 9), -i))
+    holds = (best,) * int(n_segments)
+    amps = amps[:int(n_segments)]
+    total = sum(a * a for a in amps)
+    frac = sum(a * a * fr[h] for a, h in zip(amps, holds)) / total
+    return CampaignDesign(holds, amps, tuple(float(b) for b in band_rad_s), float(frac), fr)
 
 
 def campaign(segments, dt: float = 0.02, seed=None, rng=None) -> tuple[np.ndarray, np.ndarray]:

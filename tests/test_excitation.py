@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from rotorlab.errors import ConfigError
-from rotorlab.excitation import (ANTEOS_CAMPAIGN, anteos_segments, campaign, doublet, multistep_3211, prbs,
-                                 spectrum_check, sweep)
+from rotorlab.excitation import (ANTEOS_CAMPAIGN, anteos_segments, band_fraction, campaign, design_campaign, doublet,
+                                 multistep_3211, prbs, prbs_psd, spectrum_check, sweep)
 
 DT = 0.02
 
@@ -84,3 +84,42 @@ def test_bad_arguments():
         spectrum_check(np.ones(100), DT, (4.0, 400.0))
     with pytest.raises(ConfigError, match="segments\\[0\\]"):
         campaign([(0.1, 7.0)], DT)
+
+
+@pytest.mark.parametrize("hold", ANTEOS_CAMPAIGN["hold_ranges_s"])
+def test_prbs_psd_matches_a_long_realisation(hold):
+    # the exact ensemble spectrum against Welch's estimate of 20 000 s of signal; it integrates to A^2
+    amp = 9.0
+    u = prbs(1_000_000, DT, hold_range_s=hold, amplitude=amp, seed=2)
+    chk = spectrum_check(u, DT, (0.5, 150.0), nperseg=2048)
+    S = prbs_psd(chk.w_rad_s, DT, hold, amp)
+    w = np.linspace(0.0, np.pi / DT, 20001)
+    assert np.trapezoid(prbs_psd(w, DT, hold, amp), w) == pytest.approx(amp ** 2, rel=1e-4)
+    strong = S > 0.05 * S.max()  # where the estimate's relative error is small
+    assert np.median(np.abs(chk.psd[strong] / S[strong] - 1)) < 0.05
+    for band in ((4.0, 8.0), (3.0, 7.0)):
+        assert spectrum_check(u, DT, band, nperseg=2048).band_fraction == pytest.approx(
+            band_fraction(band, DT, hold), abs=0.02)  # Welch leakage at 0.15 rad/s resolution
+
+
+def test_hold_range_sets_the_excited_band():
+    # a hold near T puts the power near pi/T: the 0.4-0.8 s range carries most of its power into 4-8 rad/s,
+    # the shorter ranges almost none
+    fr = [band_fraction((4.0, 8.0), DT, h) for h in ANTEOS_CAMPAIGN["hold_ranges_s"]]
+    assert fr[3] > 0.6 and max(fr[:3]) < 0.1
+    assert band_fraction((8.0, 30.0), DT, (0.1, 0.2)) > 0.7
+
+
+def test_design_campaign_concentrates_power_in_the_band():
+    for band in ((4.0, 8.0), (3.0, 7.0)):  # P2-A2, A2-MINI/B (ref. 000)
+        d = design_campaign(band)
+        assert d.holds == (3, 3, 3) and d.amplitudes_pct == (7.0, 9.0, 11.0) and d.band_fraction > 0.6
+        u, _ = campaign([(ANTEOS_CAMPAIGN["hold_ranges_s"][h], a, 60.0) for h, a in zip(d.holds, d.amplitudes_pct)],
+                        DT, seed=1)
+        assert spectrum_check(u, DT, band).band_fraction > 0.5
+    # each range is the design for a band around its own pi / mean hold
+    for i, (lo, hi) in enumerate(ANTEOS_CAMPAIGN["hold_ranges_s"]):
+        wc = np.pi / (0.5 * (lo + hi))
+        assert design_campaign((0.7 * wc, 1.4 * wc)).holds == (i, i, i)
+    with pytest.raises(ConfigError, match="amplitude"):
+        design_campaign((4.0, 8.0), n_segments=4)

@@ -87,3 +87,32 @@ def test_prbs_closed_and_flight_run():
     assert r.stopped is None and r.metrics["rms_tracking_error_deg"] > 0
     r = run_scenario("prbs-flight", "anteos-p2a2", gains=STD, duration_s=4.0)
     assert r.stopped is None and r.metrics["position_error_max_m"] < 1.0
+
+
+@pytest.mark.parametrize("vehicle, band", [("anteos-p2a2", (4.0, 8.0)), ("anteos-a2minib", (3.0, 7.0))])
+def test_prbs_campaign_is_designed_for_the_vehicle_band(vehicle, band):
+    # ref. 000 aimed the PRBS at the dominant attitude dynamics: 4-8 rad/s (P2-A2), 3-7 rad/s (A2-MINI/B)
+    from rotorlab.excitation import spectrum_check
+    from rotorlab.sim.scenarios import Context, prbs
+    from rotorlab.vehicles import load_vehicle
+
+    spec = load_vehicle(vehicle)
+    assert spec.campaign_band_rad_s == band
+    u, segments = prbs.excitation(Context(spec, "pitch-rig", None, 0, 120.0, {}))
+    assert [s[0] for s in segments] == [[0.4, 0.8]] * 3 and [s[1] for s in segments] == [7.0, 9.0, 11.0]
+    assert spectrum_check(u, 0.02, band).band_fraction > 0.5
+    # given holds override the design
+    _, segs = prbs.excitation(Context(spec, "pitch-rig", None, 0, 30.0, {"holds": [0, 1, 2]}))
+    assert [s[0] for s in segs] == [[0.05, 0.1], [0.1, 0.2], [0.2, 0.4]]
+
+
+def test_campaign_table_is_read_strictly(tmp_path):
+    from rotorlab.vehicles import vehicle_path
+    from rotorlab.vehicles.spec import load_vehicle_file
+
+    src = vehicle_path("anteos-p2a2").read_text()
+    for bad, field in (("band_rad_s = [8.0, 4.0]", "campaign.band_rad_s"), ("band = [4.0, 8.0]", "campaign.band")):
+        p = tmp_path / "v.toml"
+        p.write_text(src.replace("band_rad_s = [4.0, 8.0]", bad))
+        with pytest.raises(ConfigError, match=field.replace(".", r"\.")):
+            load_vehicle_file(p)

@@ -10,8 +10,8 @@ import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError
-from rotorlab.tune.montecarlo import montecarlo, random_delta, single_loop, step_stats
-from rotorlab.tune.robust import additive_spread, control_sensitivity, fit_wdelta, h_lim
+from rotorlab.tune.montecarlo import montecarlo, random_delta, single_loop, step_stats, worst_case_delta
+from rotorlab.tune.robust import additive_spread, control_sensitivity, fit_wdelta, h_lim, h_lim_analysis
 
 DT = 0.02
 W_TRUE = ct.tf(np.polymul([0.5, 0.5], [1, 4, 25]), np.polymul([1, 10], [1, 6, 100]))  # order 3, stable, min-phase
@@ -91,6 +91,67 @@ def test_h_lim_errors():
         fit_wdelta(_p2a2(), [_p2a2()], np.linspace(1, 200, 10))
 
 
+def test_wdelta_bounds_the_spread_up_to_nyquist():
+    # h_lim takes the norm over the whole band, so the envelope must hold at pi/dt too
+    rng = np.random.default_rng(5)
+    G = _p2a2(delay=False)
+    reps = [lti.c2d_zoh(ct.tf([12.517 * a, 36.37 * b], [1, 5.583, 21.3 * c]), DT)
+            for a, b, c in 1 + 0.05 * rng.standard_normal((10, 3))]
+    w = np.geomspace(0.1, math.pi / DT, 100)
+    W = fit_wdelta(G, reps, w)
+    assert np.all(np.abs(lti.freqresp(W, w)[:, 0, 0]) >= additive_spread(G, reps, w) * (1 - 1e-9))
+
+
+def _pi_loop(k, w_pole):
+    """G = 1/(s+1) with a PI controller k (1 + 1/s) (integral action), W a low-pass 0.1/(s/w_pole + 1)."""
+    G = ct.tf(1, [1, 1])
+    return G, control_sensitivity(G, ct.tf([k, k], [1, 0])), ct.tf(0.1, [1 / w_pole, 1])
+
+
+def test_h_lim_flags_a_controller_independent_dc_bound():
+    # with a slow W the norm of W V peaks at DC, where V = -C/(1+GC) -> -1/G(0) = -1 for any PI gains:
+    # h_lim = |G(0)| / |W(0)| = 10 whatever k
+    for k in (0.5, 2.0):
+        G, V, W = _pi_loop(k, 0.01)
+        r = h_lim_analysis(W, V, G)
+        assert r.h_lim == pytest.approx(10.0, rel=1e-6) and r.low_frequency_bound and r.peak_rad_s == 0.0
+        assert r.v_dc_is_minus_inv_g and "controller-independent" in r.note()
+    # a band-pass W (peak near 3 rad/s) moves the peak to where |V| = k |s+1| / |s+k| is large: the gains matter
+    for k in (0.5, 2.0):
+        G, V, _ = _pi_loop(k, 1.0)
+        W = ct.tf([0.5, 0], [1, 1.8, 9])
+        r = h_lim_analysis(W, V, G)
+        w = np.geomspace(0.1, 100, 20001)
+        mag = np.abs(lti.freqresp(W * V, w)[:, 0, 0])
+        assert not r.low_frequency_bound and r.h_lim == pytest.approx(1 / mag.max(), rel=1e-6)
+        assert r.peak_rad_s == pytest.approx(w[mag.argmax()], rel=0.02) and r.dc_ratio < 0.5
+    # without integral action V(0) != -1/G(0)
+    G = ct.tf(1, [1, 1])
+    assert h_lim_analysis(ct.tf(0.1, 1), control_sensitivity(G, ct.tf(2.0, 1)), G).v_dc_is_minus_inv_g is False
+
+
+@pytest.mark.parametrize("dt", [0.0, DT])
+def test_worst_case_delta_is_an_allpass_that_defeats_the_loop_just_above_h_lim(dt):
+    # small-gain theorem: every ||Delta|| < h_lim is stable; the phase-matched all-pass at 1.02 h_lim is not
+    # continuous: the PI part of the standard inner loop with a 0.05 s roll-off (finite peak frequency)
+    G, C = (_p2a2(), _pid()) if dt else (ct.tf([12.517, 36.37], [1, 5.583, 21.3]), ct.tf([0.257, 0.643], [0.05, 1, 0]))
+    W = ct.tf([0.5, 1.0], [0.05, 1.0]) * 0.05
+    W = lti.c2d_zoh(W, dt) if dt else W
+    V = control_sensitivity(G, C)
+    h = h_lim(W, V)
+    for scale, unstable in ((0.98, False), (1.02, True)):
+        D = worst_case_delta(W, V, scale * h)
+        w = np.geomspace(0.01, math.pi / dt if dt else 1e4, 2001)
+        assert np.allclose(np.abs(lti.freqresp(D, w)[:, 0, 0]), scale * h, rtol=1e-9)  # all-pass: |Delta| = h
+        assert lti.is_stable(D) or D.nstates == 0
+        cl = single_loop(ct.parallel(G, ct.series(D, W)), C)
+        assert (lti.spectral_abscissa(cl) > 0) == unstable
+    # a DC peak (integral action, slow W) is met by a static Delta = -h: the plant's DC gain G(0) - h W(0) -> 0
+    G, V, W = _pi_loop(1.0, 0.01)
+    D = worst_case_delta(W, V, 1.02 * h_lim(W, V))
+    assert D.nstates == 0 and D.D[0, 0] == pytest.approx(-10.2)
+
+
 def test_random_delta_has_exact_peak_gain():
     rng = np.random.default_rng(0)
     for dt in (0.0, DT):
@@ -151,6 +212,18 @@ def test_montecarlo_zero_uncertainty_reproduces_nominal(mc_setup):
     band = r.band("setpoint")
     assert np.all(band[0] <= band[2] + 1e-12) and np.all(band[2] <= band[-1] + 1e-12)
     assert r.setpoint_u is not None and r.summary()["fraction_unstable"] == 0.0
+
+
+def test_montecarlo_reports_marginal_draws_apart():
+    # DC peak: the static Delta = -h_lim puts a closed-loop pole at s = 0 (the plant loses its DC gain under
+    # an integral controller): marginal, neither stable nor unstable; Delta = +h_lim is stable
+    G, V, W = _pi_loop(1.0, 0.01)
+    C = ct.tf([1.0, 1.0], [1, 0])
+    r = montecarlo(G, W, functools.partial(single_loop, C=lti.as_ss(C)), h_lim(W, V), n=30, seed=3,
+                   static_fraction=1.0, progress=False, t_final_s=1.0)
+    assert 0 < r.fraction_marginal < 1 and r.fraction_unstable == 0.0
+    assert np.all(np.isnan(r.setpoint[r.marginal])) and not np.any(r.stable & r.marginal)
+    assert r.summary()["fraction_marginal"] == r.fraction_marginal
 
 
 def test_montecarlo_bad_input(mc_setup):

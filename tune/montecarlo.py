@@ -1,7 +1,9 @@
 """Monte Carlo robustness check with random additive uncertainty (ref. 000, "Monte Carlo simulation
 results"): ``n`` plants ``G = G_nom + W_delta Delta`` with random stable ``Delta`` of peak gain ``h``
-(typically ``h = h_lim``), each closed by the user's controller, and their set-point and load-change step
-responses summarised as bands and statistics.
+(``h = h_lim`` as published, and above it), each closed by the user's controller, and their set-point and
+load-change step responses summarised as bands and statistics. At ``h <= h_lim`` the small-gain theorem
+already guarantees stability, so the run only measures performance there; :func:`worst_case_delta` gives the
+one ``Delta`` of peak ``h`` that defeats the loop as soon as ``h > h_lim``, which shows the bound is tight.
 
 Reproducibility: sample ``i`` draws from its own ``numpy.random.Generator`` seeded by the ``i``-th child
 of ``SeedSequence(seed)``, so the results do not depend on ``n_jobs`` or on the chunking.
@@ -24,7 +26,13 @@ from tqdm.auto import tqdm
 from rotorlab import lti
 from rotorlab.errors import DataError
 
-__all__ = ["MonteCarloResult", "montecarlo", "random_delta", "step_stats", "single_loop"]
+__all__ = ["MonteCarloResult", "montecarlo", "random_delta", "step_stats", "single_loop", "worst_case_delta",
+           "MARGINAL_TOL"]
+
+#: a closed-loop pole within this distance of the stability boundary (spectral abscissa: max Re p, or
+#: max |p| - 1 when discrete) is marginal: neither counted stable nor unstable. At h = h_lim a static Delta
+#: can put a pole exactly on the boundary (e.g. at z = 1 when the peak is at DC), where rounding decides the sign.
+MARGINAL_TOL = 1e-6
 
 
 def single_loop(G, C) -> ct.StateSpace:
@@ -80,6 +88,53 @@ def random_delta(rng: np.random.Generator, h: float, dt: float = 0.0, w_band=(0.
     return ct.ss(A, B, C * (h / g), D * (h / g), dt if dt else 0)
 
 
+def worst_case_delta(W_delta, V_nom, h: float) -> ct.StateSpace:
+    """The destabilising ``Delta`` of peak gain ``h``: a phase-matched all-pass, ``h`` times a first-order
+    all-pass (or a static +-1) whose phase at the peak frequency ``w0`` of ``|W_delta V_nom|`` makes the loop
+    gain ``V_nom W_delta Delta`` real and positive there.
+
+    With ``G = G_nom + W_delta Delta`` and ``V_nom`` the transfer from a signal added to the plant output to
+    its input (:func:`rotorlab.tune.robust.control_sensitivity`, sign included), the perturbed loop is
+    ``1 - V_nom W_delta Delta``; at ``w0`` it reads ``1 - h / h_lim``. Scaling ``Delta`` from 0 to ``h`` moves
+    a closed-loop pole across the boundary at ``w0`` when the scale passes ``h_lim``, so ``h`` just above
+    ``h_lim`` destabilises the loop: the small-gain bound is tight. The all-pass keeps ``|Delta| = h`` at
+    every frequency (it is a legitimate member of the family ``||Delta||_inf <= h``).
+
+    Discrete: ``A(z) = (1 - a z) / (z - a)``, whose phase at ``W = w0 dt`` is ``-W - 2 atan2(a sin W, 1 - a
+    cos W)`` and sweeps ``(-pi, 0)`` as ``a`` runs over ``(-1, 1)``: the wanted phase ``phi`` (shifted by
+    ``pi`` with a sign flip when needed) is met by ``a = sin(b) / sin(b - W)`` with ``b = (phi + W) / 2``.
+    Continuous: ``(a - s) / (a + s)`` with ``a = w0 / tan(-phi / 2)``.
+    """
+    W, V = lti.as_ss(W_delta), lti.as_ss(V_nom)
+    dt = float(W.dt) if lti.is_discrete(W) else 0.0
+    if not (h >= 0 and math.isfinite(h)):
+        raise DataError(f"h must be a finite non-negative peak gain; got {h}")
+    WV = lti.as_ss(ct.series(W, V))
+    _, w0 = lti.hinfnorm(WV)
+    if math.isfinite(w0):
+        L = complex(lti.freqresp(WV, np.array([max(w0, 0.0)]))[0, 0, 0])
+    else:  # a continuous norm reached at infinite frequency: the feedthrough, matched by a static Delta
+        L, w0 = complex(np.asarray(WV.D, float)[0, 0]), 0.0
+    phi = -np.angle(L)  # Delta's phase that makes V W Delta real positive at w0
+    sign = 1.0
+    if np.sin(phi) > 0:  # the all-pass reaches phases in (-pi, 0): flip the sign, shift by pi
+        sign, phi = -1.0, phi - math.pi
+    if abs(np.sin(phi)) < 1e-9 or w0 <= 0 or (dt and w0 * dt >= math.pi * (1 - 1e-9)):
+        # peak at DC or Nyquist, or a real loop gain there: a static Delta matches it
+        return ct.ss([], [], [], [[h * (1.0 if L.real > 0 else -1.0)]], dt if dt else 0)
+    if dt:
+        Wr = w0 * dt
+        b = (phi + Wr) / 2.0
+        a = math.sin(b) / math.sin(b - Wr)
+        if not abs(a) < 1:
+            raise DataError(f"no stable first-order all-pass matches phase {phi:.4g} rad at {w0:.4g} rad/s")
+        ap = ct.tf([-a, 1.0], [1.0, -a], dt)
+    else:
+        a = w0 / math.tan(-phi / 2.0)
+        ap = ct.tf([-1.0, a], [1.0, a])
+    return lti.as_ss(ap * (sign * h))
+
+
 def step_stats(t: np.ndarray, y: np.ndarray, settle_band: float = 0.02) -> dict:
     """Rise time (10-90 % of the final value, s), settling time (into +-``settle_band`` of the final
     value for good, s) and overshoot (% of the final value) of one step response ``y(t)``."""
@@ -111,8 +166,10 @@ class MonteCarloResult:
         shape (n, nt); rows of unstable samples are NaN.
     setpoint_u, load_u : the control signal ``u`` when the builder returns it as second output, else None.
     nominal_setpoint, nominal_load : the same for ``G_nom`` (nt,).
-    unstable : bool mask (n,) of samples whose closed loop has a pole beyond the stability boundary
-        (spectral abscissa > 1e-9: rounding-level abscissas count as marginal, see ``abscissa``).
+    unstable : bool mask (n,) of samples whose closed loop has a pole beyond the stability boundary by more
+        than ``marginal_tol`` (spectral abscissa > ``marginal_tol``).
+    marginal : bool mask (n,) of samples with a pole within ``marginal_tol`` of the boundary: neither stable
+        nor unstable, reported apart and left out of the bands and statistics.
     abscissa : closed-loop spectral abscissa per sample (max Re p, or max |p| - 1 when discrete).
     rise_s, settling_s, overshoot_pct : set-point statistics per sample (NaN where undefined/unstable).
     load_peak : peak ``|y|`` of the load response per sample.
@@ -126,6 +183,7 @@ class MonteCarloResult:
     nominal_setpoint: np.ndarray
     nominal_load: np.ndarray
     unstable: np.ndarray
+    marginal: np.ndarray
     abscissa: np.ndarray
     rise_s: np.ndarray
     settling_s: np.ndarray
@@ -136,6 +194,15 @@ class MonteCarloResult:
     def fraction_unstable(self) -> float:
         return float(np.mean(self.unstable))
 
+    @property
+    def fraction_marginal(self) -> float:
+        return float(np.mean(self.marginal))
+
+    @property
+    def stable(self) -> np.ndarray:
+        """Bool mask of the samples whose every closed-loop pole is inside the boundary by ``marginal_tol``."""
+        return ~(self.unstable | self.marginal)
+
     def band(self, which: str = "setpoint", quantiles=(0.0, 0.05, 0.5, 0.95, 1.0)) -> np.ndarray:
         """Quantiles over the stable samples of ``which`` ('setpoint', 'load', 'setpoint_u', 'load_u'),
         shape (len(quantiles), nt); quantile 0 and 1 are the min/max envelope."""
@@ -143,14 +210,14 @@ class MonteCarloResult:
         if data is None:
             raise DataError(f"no '{which}' responses in this result; valid: setpoint, load, setpoint_u, load_u "
                             "(the last two need a builder with u as second output)")
-        ok = data[~self.unstable]
+        ok = data[self.stable]
         if ok.shape[0] == 0:
-            raise DataError("every sample is unstable; no band to compute")
+            raise DataError("every sample is unstable or marginal; no band to compute")
         return np.quantile(ok, quantiles, axis=0)
 
     def summary(self) -> dict:
-        """Median and 5/95 % quantiles of the statistics, and the unstable fraction."""
-        out = {"fraction_unstable": self.fraction_unstable}
+        """Median and 5/95 % quantiles of the statistics (stable samples), the unstable and marginal fractions."""
+        out = {"fraction_unstable": self.fraction_unstable, "fraction_marginal": self.fraction_marginal}
         for k in ("rise_s", "settling_s", "overshoot_pct", "load_peak"):
             v = getattr(self, k)
             v = v[np.isfinite(v)]
@@ -197,7 +264,6 @@ def _one(G_nom, W, builder, h, seedseq, t, opts):
 # objects (whose StateSpace holds unpicklable lambdas) nor the user's builder need to be picklable; only
 # the seeds go through the pipe.
 _JOB = None
-_MARGINAL = 1e-9
 
 
 def _chunk(seeds):
@@ -207,7 +273,7 @@ def _chunk(seeds):
 
 def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, seed=None, n_jobs: int = 1,
                t_final_s: float = 3.0, n_steps: int = 600, w_band=(0.1, 100.0), static_fraction: float = 0.2,
-               progress: bool = True) -> MonteCarloResult:
+               progress: bool = True, marginal_tol: float = MARGINAL_TOL) -> MonteCarloResult:
     """Monte Carlo of ``n`` uncertain plants ``G_nom + W_delta Delta``, ``||Delta||_inf = h``.
 
     Parameters
@@ -223,6 +289,7 @@ def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, see
     t_final_s, n_steps : simulation horizon; discrete plants use their own sample time (n_steps ignored).
     w_band, static_fraction : passed to :func:`random_delta`.
     progress : show a tqdm bar.
+    marginal_tol : a closed-loop spectral abscissa within this of zero marks the sample marginal.
     """
     if n < 1 or int(n) != n:
         raise DataError(f"n must be a positive whole number of samples; got {n}")
@@ -268,18 +335,17 @@ def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, see
 
     nom = _simulate(lti.as_ss(closed_loop_builder(G_nom)), t)
     abscissa = np.array([r[0] for r in results])
-    # At h = h_lim exactly, the worst static Delta puts a closed-loop pole on the stability boundary
-    # (abscissa ~1e-13 from rounding): such samples are marginal, not unstable.
-    unstable = abscissa > _MARGINAL
+    unstable = abscissa > marginal_tol
+    marginal = np.abs(abscissa) <= marginal_tol
     Y = np.stack([r[1] for r in results])  # (n, nt, outputs, inputs)
-    Y[unstable] = np.nan
+    Y[unstable | marginal] = np.nan
     has_u = Y.shape[2] > 1
     stats = [step_stats(t, y) if np.all(np.isfinite(y)) else None for y in Y[:, :, 0, 0]]
     pick = lambda k: np.array([s[k] if s else math.nan for s in stats])  # noqa: E731
     return MonteCarloResult(
         t=t, setpoint=Y[:, :, 0, 0], load=Y[:, :, 0, 1],
         setpoint_u=Y[:, :, 1, 0] if has_u else None, load_u=Y[:, :, 1, 1] if has_u else None,
-        nominal_setpoint=nom[:, 0, 0], nominal_load=nom[:, 0, 1], unstable=unstable, abscissa=abscissa,
+        nominal_setpoint=nom[:, 0, 0], nominal_load=nom[:, 0, 1], unstable=unstable, marginal=marginal, abscissa=abscissa,
         rise_s=pick("rise_s"), settling_s=pick("settling_s"), overshoot_pct=pick("overshoot_pct"),
         load_peak=np.max(np.abs(Y[:, :, 0, 1]), axis=1),
     )

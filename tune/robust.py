@@ -16,6 +16,7 @@ with all closed-loop states, so that :func:`h_lim` can check internal stability.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -25,7 +26,7 @@ import control as ct
 from rotorlab import lti
 from rotorlab.errors import DataError
 
-__all__ = ["fit_wdelta", "additive_spread", "control_sensitivity", "h_lim"]
+__all__ = ["fit_wdelta", "additive_spread", "control_sensitivity", "h_lim", "h_lim_analysis", "HLim"]
 
 
 def _finite_ss(sys, what: str) -> ct.StateSpace:
@@ -128,7 +129,8 @@ def fit_wdelta(G_nom, G_reps, w, order: int = 3, under_weight: float = 10.0) -> 
     ----------
     G_nom : nominal LTI model (continuous, or discrete with dt in s).
     G_reps : sequence of replica models (same shape and dt as ``G_nom``), e.g. bootstrap re-estimates.
-    w : frequency grid in rad/s, at least ``order + 1`` points (discrete: below pi/dt).
+    w : frequency grid in rad/s, at least ``order + 1`` points (discrete: up to the Nyquist frequency pi/dt
+        included: ``h_lim`` takes the norm over the whole band, so the envelope must bound it there too).
     order : filter order (numerator and denominator degree).
 
     Returns
@@ -148,8 +150,8 @@ def fit_wdelta(G_nom, G_reps, w, order: int = 3, under_weight: float = 10.0) -> 
         raise DataError("frequency grid w must be finite and positive (rad/s)")
     G_nom = _finite_ss(G_nom, "G_nom")
     dt = float(G_nom.dt) if lti.is_discrete(G_nom) else 0.0
-    if dt and w.max() >= math.pi / dt:
-        raise DataError(f"grid reaches {w.max():.4g} rad/s, at or above the Nyquist frequency {math.pi / dt:.4g} rad/s")
+    if dt and w.max() > math.pi / dt * (1 + 1e-12):
+        raise DataError(f"grid reaches {w.max():.4g} rad/s, above the Nyquist frequency {math.pi / dt:.4g} rad/s")
     spread = additive_spread(G_nom, G_reps, w)
     if np.any(spread <= 0):
         raise DataError("the replicas coincide with G_nom at some grid frequency (zero spread); "
@@ -218,3 +220,74 @@ def h_lim(W_delta, V_nom) -> float:
         raise DataError("W_delta must be stable")
     g, _ = lti.hinfnorm(ct.series(W, V))
     return 1.0 / g
+
+
+@dataclasses.dataclass(frozen=True)
+class HLim:
+    """Result of :func:`h_lim_analysis`.
+
+    Attributes
+    ----------
+    h_lim : float
+        ``1 / ||W_delta V_nom||_inf``.
+    peak_rad_s : float
+        Frequency where ``|W_delta V_nom|`` peaks, rad/s (0 at DC).
+    dc_ratio : float
+        ``|W_delta V_nom|`` at DC over its peak (1: the peak is at DC).
+    v_dc_is_minus_inv_g : bool or None
+        ``V_nom(0) = -1/G(0)`` (to 1e-6): the controller has integral action on the loop, so at DC ``V`` does not
+        depend on its gains. None when ``G`` was not given.
+    low_frequency_bound : bool
+        The norm is set at DC (``dc_ratio >= 1 - rel_tol``) where ``V = -1/G``: ``h_lim = |G(0)| / |W_delta(0)|``
+        then ranks no controller, whatever its gains (a statement about the model's DC uncertainty only).
+        Without ``G`` a peak at DC alone sets it.
+    """
+
+    h_lim: float
+    peak_rad_s: float
+    dc_ratio: float
+    v_dc_is_minus_inv_g: bool | None
+    low_frequency_bound: bool
+
+    def note(self) -> str:
+        """One sentence for reports."""
+        if self.low_frequency_bound:
+            return (f"h_lim = |G(0)|/|W_delta(0)|: ||W_delta V|| peaks at DC, where V = -1/G for any controller "
+                    "with integral action, so this is a controller-independent low-frequency bound")
+        return f"||W_delta V|| peaks at {self.peak_rad_s:.3g} rad/s"
+
+
+def _dc(sys) -> complex:
+    s = lti.as_ss(sys)
+    A, B, C, D = (np.asarray(M, float) for M in (s.A, s.B, s.C, s.D))
+    if s.nstates == 0:
+        return complex(D[0, 0])
+    I = np.eye(A.shape[0])
+    M = (I - A) if lti.is_discrete(s) else -A  # z = 1 or s = 0
+    return complex((C @ np.linalg.solve(M, B) + D)[0, 0])
+
+
+def h_lim_analysis(W_delta, V_nom, G=None, rel_tol: float = 1e-3) -> HLim:
+    """:func:`h_lim` with where ``||W_delta V_nom||`` peaks and whether the value is only a DC-gain bound.
+
+    Parameters
+    ----------
+    W_delta, V_nom : as :func:`h_lim` (SISO).
+    G : nominal plant (SISO, the time domain of ``V_nom``), optional: with it the result tells whether
+        ``V_nom(0) = -1/G(0)``, the signature of integral action (the DC value is then controller-independent).
+    rel_tol : the peak counts as "at DC" when ``|W_delta V_nom|(0) >= (1 - rel_tol)`` times the norm.
+    """
+    h = h_lim(W_delta, V_nom)
+    W, V = _finite_ss(W_delta, "W_delta"), _finite_ss(V_nom, "V_nom")
+    if (W.noutputs, W.ninputs, V.noutputs, V.ninputs) != (1, 1, 1, 1):
+        raise DataError("h_lim_analysis handles SISO W_delta and V_nom")
+    g, w_pk = lti.hinfnorm(ct.series(W, V))
+    dc_ratio = abs(_dc(W) * _dc(V)) / g
+    v_inv = None
+    if G is not None:
+        Gs = _finite_ss(G, "G")
+        _same_domain(Gs, V, "h_lim_analysis")
+        v_inv = bool(abs(_dc(V) * _dc(Gs) + 1.0) < 1e-6)
+    at_dc = dc_ratio >= 1.0 - rel_tol
+    return HLim(h_lim=float(h), peak_rad_s=0.0 if at_dc else float(w_pk), dc_ratio=float(dc_ratio),
+                v_dc_is_minus_inv_g=v_inv, low_frequency_bound=bool(at_dc and v_inv is not False))

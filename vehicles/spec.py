@@ -189,6 +189,9 @@ class VehicleSpec:
     command_limit_pct: float
     published: dict  # name -> PublishedModel
     sources: dict
+    #: identification campaign: the band (rad/s) the PRBS is designed to excite (``[campaign]``); None: the
+    #: vehicle has no open-loop PRBS campaign band of its own (rotorlab.excitation.ANTEOS_CAMPAIGN's is used)
+    campaign_band_rad_s: tuple | None = None
 
     @property
     def n_rotors(self) -> int:
@@ -343,7 +346,22 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         command_limit_pct=rd.table("commands").num("limit_pct", lo=0.0, lo_open=True),
         published=_published(src, rd.table("published", required=False)),
         sources=dict(srcs) if isinstance(srcs, dict) else {},
+        campaign_band_rad_s=_campaign_band(src, rd.table("campaign", required=False)),
     )
+
+
+def _campaign_band(src, c: _Reader | None) -> tuple | None:
+    if c is None:
+        return None
+    unknown = sorted(set(c.data) - {"band_rad_s"})
+    if unknown:
+        raise ConfigError("unknown field", file=src, field=f"campaign.{unknown[0]}", expected="band_rad_s",
+                          got=unknown[0])
+    band = c.vec("band_rad_s", 2, lo=0.0)
+    if not band[0] < band[1]:
+        raise ConfigError(file=src, field="campaign.band_rad_s", expected="[low, high] with low < high",
+                          got=list(band))
+    return band
 
 
 def load_vehicle_file(path, physics_dt_s: float | None = None) -> VehicleSpec:
