@@ -13,6 +13,7 @@ import time
 
 from rotorlab.gains import AxisGains, GainSet, LoopGains
 from rotorlab.sim.control import DiscretePID, FlightSoftware, quad_plus
+from rotorlab.vehicles import load_vehicle
 
 DT = 0.02
 BATCH, REPEATS = 200, 300
@@ -34,7 +35,8 @@ def _time(fn) -> tuple[float, float]:
 
 
 def bench_fs(mode: str, altitude_hold: bool) -> tuple[float, float]:
-    fs = FlightSoftware(GainSet("standard", {"pitch": STANDARD, "roll": STANDARD}), quad_plus(0.415), DT, mode=mode)
+    fs = FlightSoftware(GainSet("standard", {"pitch": STANDARD, "roll": STANDARD}), quad_plus(0.415), DT, mode=mode,
+                        limits=load_vehicle("anteos-p2a2").commands)
     fs.set_reference(theta_ref=5.0, phi_ref=-2.0, psi_ref=10.0, x_ref=1.0, y_ref=0.0)
     if altitude_hold:
         fs.set_reference(z_ref=-5.0)

@@ -11,11 +11,14 @@ simulation follows the scalar path of :func:`rotorlab.sim.runner.run_scenario` s
 * per control tick the batch takes the 20 physics steps of one control period in one call and then computes
   the position and velocity stages at the new state (``stage=mjSTAGE_VEL``), so the IMU is sampled at the
   tick as the scalar ``mj_step`` + ``mj_forward`` does;
-* IMU noise and bias come from a ``numpy.random.Generator`` per simulation seeded like the scalar simulator's
-  (``default_rng(seed)``: bias first, then nine normals per noisy tick), so a batched run with noise is the
-  scalar run with the same seed;
-* wind (the scenario's gust plus any per-simulation mean wind) enters as in ``Simulator._apply_wind``: the
-  per-simulation ``opt.wind`` (fuselage drag) and the rotor aero actuators' controls (body-axis wind).
+* the IMU is the scalar simulator's :class:`~rotorlab.sim.sensors.SensorSuite` read over the batch's rows, its
+  noise and bias from a ``numpy.random.Generator`` per simulation seeded like the scalar simulator's
+  (``default_rng(seed)``: bias first, then one normal per noisy channel per noisy tick), so a batched run with
+  noise is the scalar run with the same seed (the accelerometer is read but not used: the batch's forward pass
+  stops at the velocity stage);
+* wind (the scenario's gust plus any per-simulation mean wind) enters as in the simulator
+  (:func:`~rotorlab.sim.simulator.body_wind`): the per-simulation ``opt.wind`` (fuselage drag) and the rotor aero
+  actuators' controls (body-axis wind); the divergence checks are the simulator's.
 
 Per-simulation physical variation (``vary``) uses the batch's per-simulation model fields: airframe mass and
 inertia (followed by ``set_const``) and a steady wind per simulation.
@@ -34,11 +37,12 @@ from mujoco.batch import Batch, SimulationError
 from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet
 from rotorlab.sim import scenarios
-from rotorlab.sim.control.vector import VectorAttitudeController, VectorSupervisor, euler_deg_from_quats
-from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance
-from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG
+from rotorlab.sim.control.vector import VectorAttitudeController, VectorSupervisor
+from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance, total_wind_ned
+from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quats
 from rotorlab.sim.runner import BASE_COLUMNS, resolve_gains
-from rotorlab.sim.simulator import Simulator
+from rotorlab.sim.simulator import (DIVERGENCE_WARNINGS, Simulator, at_rig_stop, body_wind, diverged_reason,
+                                    rig_stop_reason)
 from rotorlab.scenes import PREFIX
 from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
 
@@ -48,9 +52,6 @@ SCENES = ("pitch-rig", "roll-rig")
 VARY_KEYS = ("mass", "inertia", "wind")
 #: ticks of IMU noise drawn per simulation at a time (bounds the memory of the pre-drawn noise)
 NOISE_CHUNK_TICKS = 256
-#: yaw saturations of the flight software (FlightSoftware defaults)
-YAW_RATE_LIMIT_DPS, YAW_U_LIMIT_PCT = 90.0, 20.0
-_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS)
 _NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
 
 
@@ -281,11 +282,8 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     stage_vel = int(mujoco.mjtStage.mjSTAGE_VEL)
     batch.forward(stage=stage_vel)
 
-    def sens(name):
-        s = m.sensor(f"{PREFIX}{name}")
-        return slice(int(s.adr[0]), int(s.adr[0] + s.dim[0]))
-
-    s_gyro, s_quat = sens("gyro"), sens("imu_quat")
+    imu = sim.imu
+    col = {c: k for k, c in enumerate(imu.channels)}
     thrust = np.asarray(sim.scene.thrust_actuators)
     aero = {k: np.asarray(a) for k, a in sim.scene.aero_actuators.items()}
     qadr = [int(m.jnt_qposadr[m.joint(j).id]) for j in ("rig_bearing", "rig_mount")]
@@ -293,8 +291,9 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
 
     # flight software
     dt = sim.control_dt_s
-    lim = float(setup.u_limit_pct or v.command_limit_pct)
-    att = VectorAttitudeController(gsets, n, dt, setup.rate_limit_dps, lim, YAW_RATE_LIMIT_DPS, YAW_U_LIMIT_PCT)
+    limits = setup.limits(v)
+    lim, ylim = limits.limit_pct, limits.yaw_limit_pct
+    att = VectorAttitudeController(gsets, n, dt, limits)
     ol = frozenset(setup.open_loop_axes) if setup.mode == "open-loop" else frozenset()
     sup = VectorSupervisor()
     mx = sim.mixer
@@ -303,13 +302,8 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     u_col_default = float(v.hover_collective_pct)
 
     # IMU noise: per-simulation generators seeded as Simulator.reset seeds its own
-    imu = v.imu
     rngs = [np.random.default_rng(int(s)) for s in seeds]
-    bias = np.zeros((n, 6))
-    if noise:
-        for i, g in enumerate(rngs):
-            bias[i, 0:3] = g.normal(0.0, imu.gyro_bias_dps, 3)
-    std = np.repeat([imu.gyro_noise_dps, imu.angle_noise_deg], 3)
+    bias = np.array([imu.draw_bias(g) if noise else np.zeros(imu.n_noisy) for g in rngs])
     z_chunk, z_pos = None, NOISE_CHUNK_TICKS
 
     # wind: the scenario's (common) plus each simulation's steady wind
@@ -329,7 +323,6 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     active = np.ones(n, dtype=bool)
     ids = None  # all simulations while none has stopped
     psi_latched = None
-    gyro_scale = FLU_TO_FRD * RAD2DEG
     reference, noise_on = setup.reference, setup.noise_on
 
     for k in tqdm(range(n_ticks), desc="simulating batch", unit="tick", disable=not progress, leave=False):
@@ -337,17 +330,15 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
         t = float(time[i0])
         t_log[k] = t
         # ---- measure (Simulator.measure)
-        meas = np.empty((n, 6))
-        meas[:, 0:3] = sd[:, s_gyro] * gyro_scale
-        meas[:, 3:6] = euler_deg_from_quats(sd[:, s_quat])
+        meas = imu.read(sd)
         if noise and (noise_on is None or noise_on(t)):
             if z_pos == NOISE_CHUNK_TICKS:
-                # the same stream as nine normals per tick: the Generator fills arrays sample by sample
-                z_chunk = np.stack([g.standard_normal((NOISE_CHUNK_TICKS, 9)) for g in rngs], axis=1)
+                # the same stream as one draw per tick: the Generator fills arrays sample by sample
+                z_chunk = np.stack([g.standard_normal((NOISE_CHUNK_TICKS, imu.n_noisy)) for g in rngs], axis=1)
                 z_pos = 0
-            meas += bias + std * z_chunk[z_pos, :, 0:6]
+            imu.add_noise(meas, bias, z_chunk[z_pos])
             z_pos += 1
-        p, q, r, phi, theta, psi = meas.T
+        p, q, r, phi, theta, psi = (meas[:, col[c]] for c in ("p", "q", "r", "phi", "theta", "psi"))
         # ---- flight software (FlightSoftware.step, cascade / open-loop)
         refs = reference(t) if reference is not None else {}
         if "z_ref" in refs or "x_ref" in refs or "y_ref" in refs:
@@ -363,7 +354,7 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
         u_col = float(refs.get("u_col", u_col_default))
         u_lat, p_ref = att.roll.step(phi_ref, phi, p)
         u_lon, q_ref = att.pitch.step(theta_ref, theta, q)
-        u_yaw, r_ref = att.yaw.step(psi_ref, psi, r)
+        u_yaw, _ = att.yaw.step(psi_ref, psi, r)
         if ol:
             nan = np.full(n, math.nan)
             if "roll" in ol:
@@ -371,10 +362,10 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
             if "pitch" in ol:
                 u_lon, q_ref = refs.get("u_lon", 0.0) + 0.0 + sup.step(theta, q), nan
             if "yaw" in ol:
-                u_yaw, r_ref = np.full(n, refs.get("u_yaw", 0.0) + 0.0), nan
+                u_yaw = np.full(n, refs.get("u_yaw", 0.0) + 0.0)
         u_lat = np.clip(u_lat, -lim, lim)
         u_lon = np.clip(u_lon, -lim, lim)
-        u_yaw = np.clip(u_yaw, -YAW_U_LIMIT_PCT, YAW_U_LIMIT_PCT)
+        u_yaw = np.clip(u_yaw, -ylim, ylim)
         u_col = min(max(u_col, mx.out_min), mx.out_max)
         # mixer: the scalar mixer's sum in its order, then the per-rotor clip
         rotor = np.empty((n, len(mrows)))
@@ -394,15 +385,12 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
             tr[name][k] = val
         # ---- wind at the tick (Simulator.tick -> disturbances -> _apply_wind)
         if windy:
-            w_common = np.zeros(3)
-            for dist in wind_dists:
-                w_common += dist.wind_ned(t) * _NED_TO_ZUP
-            w = w_common + wind_sim_zup
+            w = total_wind_ned(wind_dists, t) * _NED_TO_ZUP + wind_sim_zup
             if wind_dists:
                 w_ned = w * _NED_TO_ZUP
                 tr["wind_u"][k], tr["wind_v"][k], tr["wind_w"][k] = w_ned.T
             opt_wind[:] = w
-            wb = np.einsum("nji,nj->ni", R, w)
+            wb = body_wind(xmat[:, airframe], w)
             ctrl[:, aero["hx"]] = wb[:, 0:1]
             ctrl[:, aero["hy"]] = wb[:, 1:2]
             ctrl[:, aero["inflow"]] = wb[:, 2:3]
@@ -415,18 +403,15 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
         # ---- checks (Simulator.check)
         ang = np.degrees(qpos[:, qadr[0]] + qpos[:, qadr[1]])
         bad = np.zeros(n, dtype=bool)
-        for wi in _WARNINGS:
+        for wi in DIVERGENCE_WARNINGS:
             bad |= batch.warning[:, int(wi), 0] > 0
-        hit = np.abs(ang) >= stop_deg - 0.5
+        hit = at_rig_stop(ang, stop_deg)
         new = active & (bad | hit | np.array([s is not None for s in stopped]))
         if new.any():
             t_next = t + dt
             for i in np.flatnonzero(new):
                 if stopped[i] is None:
-                    stopped[i] = (f"MuJoCo warning at t = {t_next:.3f} s (the simulation diverged: NaN/inf or huge "
-                                  "state)" if bad[i] else
-                                  f"{sim.scene.rig_axis} angle {ang[i]:+.1f} deg reached the rig stop "
-                                  f"(+-{stop_deg:g} deg) at t = {t_next:.3f} s")
+                    stopped[i] = (diverged_reason(t_next) if bad[i] else rig_stop_reason(sim.scene, ang[i], t_next))
                 rows[i] = k + 1
             active &= ~new
             if not active.any():

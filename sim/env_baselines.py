@@ -19,13 +19,16 @@ from rotorlab.sim.simulator import vehicle_mixer
 
 class RigPIDPolicy:
     """Cascade PID for :class:`~rotorlab.sim.env_rig.RigEnv` in ``command`` mode: angle PD -> rate set-point
-    (+-``rate_limit_dps``) -> rate PID -> axis command (%), the published architecture and gains."""
+    (+-``rate_limit_dps``, default the vehicle's) -> rate PID -> axis command (%), the published architecture and
+    gains."""
 
-    def __init__(self, env, gains=None, rate_limit_dps: float = 150.0):
+    def __init__(self, env, gains=None, rate_limit_dps: float | None = None):
         e = env.unwrapped
         if getattr(e, "control", None) != "command":
             raise ConfigError(field="env.control", expected="a rig env in 'command' mode", got=getattr(e, "control", None))
         g = resolve_gains(e.base_vehicle, gains if gains is not None else e.gains)[e.axis]
+        if rate_limit_dps is None:
+            rate_limit_dps = e.base_vehicle.commands.rate_limit_dps
         self.axis = CascadeAxis(g.outer, g.inner, e.control_dt_s, rate_limit_dps, e.u_limit_pct)
 
     def reset(self) -> None:
@@ -52,7 +55,7 @@ class HoverPIDPolicy:
         pos = PositionGains.for_vehicle(v.mass_kg, v.hover_collective_pct, v.thrust_exponent)
         self.dt = e.control_dt_s
         self.fs = FlightSoftware(resolve_gains(v, gains if gains is not None else e.gains), vehicle_mixer(v),
-                                 dt=self.dt, mode="position", u_limit_pct=e.u_limit_pct, position_gains=pos)
+                                 dt=self.dt, mode="position", limits=v.commands, position_gains=pos)
         self.reset()
 
     def reset(self) -> None:

@@ -90,7 +90,7 @@ class HoverEnv(RotorlabEnv):
         self.observation_space = box([-x for x in hi], hi)
         self.gains = resolve_gains(v, gains)
         self._fs = FlightSoftware(self.gains, vehicle_mixer(v), dt=self.control_dt_s, mode="cascade",
-                                  u_limit_pct=lim)
+                                  limits=v.commands)
         self._target = np.array([0.0, 0.0, -HOVER_HEIGHT_M])
         self._u = np.zeros(4)
 

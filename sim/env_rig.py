@@ -9,7 +9,7 @@ Actions (float32 Box, shape (1,))
     The axis command (pitch or roll control variable) in %, bounded by the vehicle's command limit
     (+-30 % on the P2-A2).
 ``control='inner_loop'``
-    The rate set-point in deg/s (+-``rate_limit_dps``, default 150); the vehicle's inner PID (its ``gains``
+    The rate set-point in deg/s (+-``rate_limit_dps``, default the vehicle's); the vehicle's inner PID (its ``gains``
     set, :class:`~rotorlab.sim.control.pid.DiscretePID` with clamping anti-windup) closes the rate loop.
 
 Actions outside the Box are clipped component-wise to its bounds (``info['action_clipped']`` says so);
@@ -64,8 +64,8 @@ class RigEnv(RotorlabEnv):
     task : {'tracking', 'regulation'}
     setpoint_max_deg, setpoint_period_s : float
         Set-point steps of the tracking task.
-    rate_limit_dps : float
-        Rate set-point bound in ``inner_loop`` mode.
+    rate_limit_dps : float, optional
+        Rate set-point bound in ``inner_loop`` mode (default the vehicle's ``commands.rate_limit_dps``).
     **kwargs
         Common options of :class:`~rotorlab.sim.env_base.RotorlabEnv` (``sensor_noise``, ``disturbances``,
         ``randomize``, ``episode_s``, ``effort_weight``, ``privileged``, ``render_mode``).
@@ -76,7 +76,7 @@ class RigEnv(RotorlabEnv):
 
     def __init__(self, axis: str = "pitch", vehicle="anteos-p2a2", *, control: str = "command", gains=None,
                  task: str = "tracking", setpoint_max_deg: float = 10.0, setpoint_period_s: float = 2.0,
-                 rate_limit_dps: float = 150.0, **kwargs):
+                 rate_limit_dps: float | None = None, **kwargs):
         if axis not in _AXIS:
             raise UnknownNameError("rig axis", axis, _AXIS)
         if control not in CONTROLS:
@@ -98,6 +98,8 @@ class RigEnv(RotorlabEnv):
         if control == "command":
             bound = self.u_limit_pct
         else:
+            if rate_limit_dps is None:
+                rate_limit_dps = self.base_vehicle.commands.rate_limit_dps
             if not rate_limit_dps > 0:
                 raise ConfigError(field="rate_limit_dps", expected="a limit > 0 deg/s", got=rate_limit_dps)
             bound = float(rate_limit_dps)

@@ -32,6 +32,23 @@ def euler_deg_from_quat(quat_wxyz) -> np.ndarray:
     return np.array([roll * RAD2DEG, pitch * RAD2DEG, yaw * RAD2DEG])
 
 
+def euler_deg_from_quats(quat_wxyz) -> np.ndarray:
+    """Aerospace (roll, pitch, yaw) in degrees of body (FLU) orientations in the z-up world, ``(n, 4) -> (n, 3)``
+    (:func:`euler_deg_from_quat` over rows)."""
+    q = np.asarray(quat_wxyz, dtype=float)
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    r00 = 1 - 2 * (y * y + z * z)
+    r10 = 2 * (x * y + w * z)
+    r20 = 2 * (x * z - w * y)
+    r21 = 2 * (y * z + w * x)
+    r22 = 1 - 2 * (x * x + y * y)
+    out = np.empty((q.shape[0], 3))
+    out[:, 0] = np.arctan2(r21, r22) * RAD2DEG
+    out[:, 1] = np.arcsin(np.clip(r20, -1.0, 1.0)) * RAD2DEG
+    out[:, 2] = -np.arctan2(r10, r00) * RAD2DEG
+    return out
+
+
 def rates_dps_from_flu(omega_flu_rad_s) -> np.ndarray:
     """Body rates (p, q, r) in deg/s from a FLU angular velocity in rad/s."""
     return FLU_TO_FRD * np.asarray(omega_flu_rad_s) * RAD2DEG

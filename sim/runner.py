@@ -60,8 +60,7 @@ def resolve_gains(vehicle, gains) -> GainSet | None:
 def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: float = CONTROL_DT_S) -> FlightSoftware:
     pos = PositionGains.for_vehicle(vehicle.mass_kg, vehicle.hover_collective_pct, vehicle.thrust_exponent)
     return FlightSoftware(
-        gains, vehicle_mixer(vehicle), dt=dt, mode=setup.mode, rate_limit_dps=setup.rate_limit_dps,
-        u_limit_pct=setup.u_limit_pct or vehicle.command_limit_pct, position_gains=pos,
+        gains, vehicle_mixer(vehicle), dt=dt, mode=setup.mode, limits=setup.limits(vehicle), position_gains=pos,
         open_loop_axes=setup.open_loop_axes, schedule=setup.schedule or None, reference=setup.reference,
         excitation=setup.excitation or None,
     )

@@ -15,7 +15,9 @@ import numpy as np
 from rotorlab.errors import RotorlabError
 from rotorlab.scenes import PREFIX, Scene, build_scene
 from rotorlab.sim.control.mixer import Mixer
+from rotorlab.sim.disturbances.mean_wind import WindDisturbance
 from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG, euler_deg_from_quat
+from rotorlab.sim.sensors import SENSORS, imu_suite
 
 CONTROL_DT_S = 0.02
 FREE_FLIGHT_TILT_LIMIT_DEG = 80.0
@@ -30,6 +32,43 @@ def vehicle_mixer(vehicle) -> Mixer:
     """
     pos = vehicle.rotor_positions()[:, :2]
     return Mixer(pos, vehicle.rotor.spin, kind=vehicle.kind, frame="flu")
+
+
+#: MuJoCo warnings that mean the run diverged: MuJoCo flags (and resets) NaN/inf states through them, so no
+#: array scan is needed
+DIVERGENCE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
+                       mujoco.mjtWarning.mjWARN_BADQPOS)
+
+
+def body_wind(xmat, wind_world) -> np.ndarray:
+    """Wind in the airframe's axes (FLU), m/s: what drives the rotors' H-force (x, y) and inflow (z) actuators,
+    whose sites are aligned with the airframe.
+
+    Parameters
+    ----------
+    xmat : (9,) or (n, 9)
+        Airframe orientation (MuJoCo ``xmat`` row), one simulation or one row per simulation.
+    wind_world : (3,) or (n, 3)
+        Wind in the world (z up), m/s.
+    """
+    if np.ndim(xmat) == 1:
+        return xmat.reshape(3, 3).T @ wind_world
+    return np.einsum("nji,nj->ni", np.reshape(xmat, (-1, 3, 3)), wind_world)
+
+
+def diverged_reason(t: float, warning: str = "") -> str:
+    return f"MuJoCo warning {warning + ' ' if warning else ''}at t = {t:.3f} s (the simulation diverged: NaN/inf or huge state)"
+
+
+def at_rig_stop(angle_deg, stop_deg: float):
+    """Whether a rig angle (deg; scalar or array) reached the rig's stop, with the half-degree margin that keeps
+    the run off the stop's contact."""
+    return abs(angle_deg) >= stop_deg - 0.5
+
+
+def rig_stop_reason(scene, angle_deg: float, t: float) -> str:
+    return (f"{scene.rig_axis} angle {angle_deg:+.1f} deg reached the rig stop (+-{scene.stop_deg:g} deg) "
+            f"at t = {t:.3f} s")
 
 
 class Diverged(RotorlabError):
@@ -60,6 +99,7 @@ class Simulator:
     def __init__(self, scene="pitch-rig", vehicle="anteos-p2a2", *, seed: int = 0, control_dt_s: float = CONTROL_DT_S,
                  sensor_noise: bool = True, disturbances=()):
         self.disturbances = list(disturbances)
+        self.wind_disturbances = [d for d in self.disturbances if isinstance(d, WindDisturbance)]
         if isinstance(scene, Scene):
             self.scene = scene
         else:
@@ -89,27 +129,28 @@ class Simulator:
         self._limit = self.vehicle.command_limit_pct
         self._airframe = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{PREFIX}airframe")
         self._key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "hover")
-        self._sens = {}
-        for name in ("gyro", "accel", "imu_quat", "load_cell_z", "load_cell_yaw"):
-            for full in (f"{PREFIX}{name}", name):
-                sid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SENSOR, full)
-                if sid >= 0:
-                    adr, dim = m.sensor_adr[sid], m.sensor_dim[sid]
-                    self._sens[name] = slice(adr, adr + dim)
-                    break
+        # the sensors this model carries (an IMU on the vehicle, a load cell and a tachometer on the stand)
+        self.sensors = {}
+        for name, cls in SENSORS.items():
+            try:
+                self.sensors[name] = cls(m, self.vehicle)
+            except LookupError:
+                pass
+        self.imu = imu_suite(m, self.vehicle)
         self._bearing = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
         self._mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
         self._free = self.scene.name == "free-flight"
+        if self._bearing >= 0:
+            self._rig_qadr = (int(m.jnt_qposadr[self._bearing]), int(m.jnt_qposadr[self._mount]))
+            self._stop_deg = float(self.scene.stop_deg)
         # views into MjData's buffers, made once: attribute access through the bindings costs microseconds
         d = self.data
-        self._gyro_v, self._quat_v, self._accel_v = (d.sensordata[self._sens[k]] for k in ("gyro", "imu_quat", "accel")) \
-            if "gyro" in self._sens else (None, None, None)
+        self._sd_v = d.sensordata
         self._qpos_v, self._qvel_v, self._ctrl_v = d.qpos, d.qvel, d.ctrl
         af = max(self._airframe, 0)
         self._af_xquat, self._af_xmat, self._af_xpos = d.xquat[af], d.xmat[af], d.xpos[af]
         self._wind_v = self.model.opt.wind
-        self._warnings = [(w, d.warning[w]) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
-                                                       mujoco.mjtWarning.mjWARN_BADQPOS)]
+        self._warnings = [(w, d.warning[w]) for w in DIVERGENCE_WARNINGS]
         self._gyro_scale = FLU_TO_FRD * RAD2DEG
         self._floor_z = FLOOR_CLEARANCE_M + self.vehicle.body_size_m[2]
         self.wind_world = np.zeros(3)
@@ -129,11 +170,9 @@ class Simulator:
                 vals = np.full((m.actuator_history[i, 0], 1), d.ctrl[i])
                 mujoco.mj_initCtrlHistory(m, d, i, None, vals)
         self.rng = np.random.default_rng(self.seed)
-        imu = self.vehicle.imu
-        self._noise_bias = np.zeros(9)
-        if self.sensor_noise:
-            self._noise_bias[0:3] = self.rng.normal(0.0, imu.gyro_bias_dps, 3)
-        self._noise_std = np.repeat([imu.gyro_noise_dps, imu.angle_noise_deg, imu.accel_noise_mps2], 3)
+        self._noise_bias = None
+        if self.imu is not None:
+            self._noise_bias = self.imu.draw_bias(self.rng) if self.sensor_noise else np.zeros(self.imu.n_noisy)
         self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
         self.wind_world[:] = 0.0
         self._wind_v[:] = 0.0  # opt.wind lives in the model, which outlives a run
@@ -163,12 +202,11 @@ class Simulator:
     def _apply_wind(self) -> None:
         w = self.wind_world
         self._wind_v[:] = w
-        # rotor sites are aligned with the airframe: wind in body axes drives the inflow and H-force actuators
-        R = self.data.xmat[self._airframe].reshape(3, 3) if self._airframe >= 0 else np.eye(3)
-        wb = R.T @ w
-        self.data.ctrl[self._hx] = wb[0]
-        self.data.ctrl[self._hy] = wb[1]
-        self.data.ctrl[self._inflow] = wb[2]
+        wb = body_wind(self._af_xmat, w) if self._airframe >= 0 else w
+        ctrl = self._ctrl_v
+        ctrl[self._hx] = wb[0]
+        ctrl[self._hy] = wb[1]
+        ctrl[self._inflow] = wb[2]
 
     # ------------------------------------------------------------------ stepping
     def tick(self) -> None:
@@ -187,16 +225,14 @@ class Simulator:
 
     def check(self) -> str | None:
         """Why the run must stop, or None: NaN, a MuJoCo warning, the rig's stops, a crash or a flip."""
-        d, m = self.data, self.model
-        # MuJoCo flags (and resets) NaN/inf states through these warnings, so no array scan is needed here
         for w, stat in self._warnings:
             if stat.number > 0:
-                return f"MuJoCo warning {w.name} at t = {self.time:.3f} s (the simulation diverged: NaN/inf or huge state)"
+                return diverged_reason(self.time, w.name)
         if self._bearing >= 0:
-            ang = math.degrees(d.qpos[m.jnt_qposadr[self._bearing]] + d.qpos[m.jnt_qposadr[self._mount]])
-            if abs(ang) >= self.scene.stop_deg - 0.5:
-                return (f"{self.scene.rig_axis} angle {ang:+.1f} deg reached the rig stop "
-                        f"(+-{self.scene.stop_deg:g} deg) at t = {self.time:.3f} s")
+            qpos = self._qpos_v
+            ang = math.degrees(qpos[self._rig_qadr[0]] + qpos[self._rig_qadr[1]])
+            if at_rig_stop(ang, self._stop_deg):
+                return rig_stop_reason(self.scene, ang, self.time)
         elif self._free:
             # tilt from the body z axis: R[2, 2] = cos(tilt)
             tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(self._af_xmat[8])))))
@@ -208,19 +244,16 @@ class Simulator:
 
     # ------------------------------------------------------------------ sensing
     def measure(self) -> dict:
-        """IMU readings at this tick in flight-software units, with seeded noise and bias when enabled:
-        ``phi, theta, psi`` (deg), ``p, q, r`` (deg/s), ``ax, ay, az`` (m/s^2, body FRD), and for outer loops
-        ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s, NED) from the position sensor (truth plus noise-free)."""
-        # one vector of IMU values in FRD/deg: rates, attitude, specific force
-        imu = np.empty(9)
-        imu[0:3] = self._gyro_v * self._gyro_scale
-        imu[3:6] = euler_deg_from_quat(self._quat_v)
-        imu[6:9] = self._accel_v * FLU_TO_FRD
+        """IMU readings at this tick in flight-software units (:data:`rotorlab.sim.sensors.IMU`), with seeded noise
+        and bias when enabled: ``phi, theta, psi`` (deg), ``p, q, r`` (deg/s), ``ax, ay, az`` (m/s^2, body FRD),
+        and for outer loops ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s, NED) from the position sensor (truth,
+        noise-free)."""
+        imu = self.imu
+        vals = imu.read(self._sd_v)
         if self.sensor_noise:
-            # one draw per tick for all nine channels keeps the stream (and so the log) seed-determined
-            imu += self._noise_bias + self._noise_std * self.rng.standard_normal(9)
-        p, q, r, phi, theta, psi, ax, ay, az = imu.tolist()
-        out = {"phi": phi, "theta": theta, "psi": psi, "p": p, "q": q, "r": r, "ax": ax, "ay": ay, "az": az}
+            # one draw per tick for all noisy channels keeps the stream (and so the log) seed-determined
+            imu.add_noise(vals, self._noise_bias, self.rng.standard_normal(imu.n_noisy))
+        out = dict(zip(imu.channels, vals.tolist()))
         if self._free:
             # the free joint's qpos/qvel are the airframe origin's world position and velocity
             x, y, z = self._qpos_v[0:3].tolist()
@@ -240,25 +273,14 @@ class Simulator:
         return np.array([v[0], -v[1], -v[2]]) * RAD2DEG
 
     def load_cell(self) -> tuple[float, float]:
-        """Thrust-stand readings: thrust (N, up) and rotor drag torque (N m, counter-clockwise from above).
-
-        The cell is tared: its spring deflection times stiffness, plus the mount weight it carries at rest.
-        """
-        from rotorlab.scenes import LOAD_CELL_K, LOAD_CELL_MASS_KG
-
-        sd = self.data.sensordata
-        g = -float(self.model.opt.gravity[2])
-        force = LOAD_CELL_K[0] * float(sd[self._sens["load_cell_z"]][0]) + LOAD_CELL_MASS_KG * g
-        torque = LOAD_CELL_K[1] * float(sd[self._sens["load_cell_yaw"]][0])
-        return force, torque
+        """Thrust-stand readings: thrust (N, up) and rotor drag torque (N m, counter-clockwise from above)
+        (:class:`rotorlab.sim.sensors.LoadCell`)."""
+        thrust, torque = self.sensors["load-cell"].read(self._sd_v).tolist()
+        return thrust, torque
 
     def rotor_speed_rad_s(self) -> np.ndarray:
-        """Tachometer: rotor speed of each rotor (variable RPM: from the motor state; variable pitch: fixed)."""
-        v = self.vehicle
-        if v.kind == "variable-rpm":
-            act = self.data.act[self.model.actuator_actadr[self._thrust]]
-            return np.sqrt(np.maximum(act, 0.0))
-        return np.full(len(self._thrust), v.rotor.rotor_speed_rad_s)
+        """Tachometer: rotor speed of each rotor, rad/s (:class:`rotorlab.sim.sensors.Tachometer`)."""
+        return self.sensors["tachometer"].read(self.data.act)
 
 
 def _stable_hash(name: str) -> int:

@@ -19,8 +19,8 @@ from rotorlab.gains import AxisGains, GainSet, LoopGains
 from rotorlab.sim.batch import run_batch
 from rotorlab.sim.control.pid import DiscretePID
 from rotorlab.sim.control.supervisor import Supervisor
-from rotorlab.sim.control.vector import VectorPID, VectorSupervisor, euler_deg_from_quats
-from rotorlab.sim.frames import euler_deg_from_quat
+from rotorlab.sim.control.vector import VectorPID, VectorSupervisor
+from rotorlab.sim.frames import euler_deg_from_quat, euler_deg_from_quats
 from rotorlab.sim.runner import make_flight_software, resolve_gains, run_scenario
 from rotorlab.sim import scenarios
 from rotorlab.sim.simulator import Simulator

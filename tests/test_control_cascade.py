@@ -9,10 +9,12 @@ import pytest
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import AxisGains, GainSet, LoopGains
 from rotorlab.lti import c2d_zoh, delay_ss, pid2_ss
+from rotorlab.vehicles import load_vehicle
 from rotorlab.sim.control import (AttitudeController, CallbackPlugin, CascadeAxis, FlightSoftware, Mixer,
                                   PositionGains, StateSpacePlugin, quad_plus, quad_x)
 
 DT = 0.02
+LIMITS = load_vehicle("anteos-p2a2").commands  # the P2-A2's [commands]: +-30 %, +-150 deg/s, yaw +-20 %, +-90 deg/s
 STD = AxisGains(outer=LoopGains(kp=9.26, kd=1.11, tf=0.03),
                 inner=LoopGains(kp=0.257, ki=0.643, kd=0.0231, tf=0.0225))
 OPT_TB = AxisGains(outer=LoopGains(kp=5.4631, kd=0.9376, tf=0.0380),
@@ -80,6 +82,7 @@ def test_cascade_saturations():
 
 
 def _closed_loop_step(gains: AxisGains, n=150, amp=10.0, **limits):
+    limits = {"rate_limit_dps": LIMITS.rate_limit_dps, "u_limit_pct": LIMITS.limit_pct, **limits}
     plant, axis = _Plant(), CascadeAxis(gains.outer, gains.inner, DT, **limits)
     th, us = np.empty(n), np.empty(n)
     for k in range(n):
@@ -130,7 +133,7 @@ def test_heading_wrap_takes_the_short_way():
 
 
 def test_attitude_schedule_switches_gains_bumplessly():
-    att = AttitudeController(_gs("standard", STD), DT, schedule=[(1.0, _gs("optimal", OPT_TB))])
+    att = AttitudeController(_gs("standard", STD), DT, LIMITS, schedule=[(1.0, _gs("optimal", OPT_TB))])
     us = []
     for k in range(100):
         us.append(att.step(k * DT, 0.0, 3.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0)[1])  # held inputs
@@ -188,10 +191,10 @@ def _meas(theta=0.0, q=0.0, **kw):
 
 
 def test_flight_software_cascade_matches_cascade_axis_and_mixes():
-    fs = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT)
+    fs = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, limits=LIMITS)
     fs.set_reference(theta_ref=2.0, u_col=60.0)
     plant_a, plant_b = _Plant(), _Plant()
-    axis = CascadeAxis(STD.outer, STD.inner, DT)
+    axis = CascadeAxis(STD.outer, STD.inner, DT, LIMITS.rate_limit_dps, LIMITS.limit_pct)
     for k in range(100):
         th, q = plant_a.out()
         out = fs.step(k * DT, _meas(th, q))
@@ -210,8 +213,8 @@ def test_state_space_plugin_reproduces_builtin_inner_loop():
     plug = StateSpacePlugin(K, inputs=["q_ref", "q"], outputs=["u_lon"], dt=DT)
     seen = []
     spy = CallbackPlugin(lambda t, s: seen.append(s["u_lon"]) or {"spy": 1.0})
-    fs_builtin = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT)
-    fs_plugin = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, plugins=[plug, spy])
+    fs_builtin = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, limits=LIMITS)
+    fs_plugin = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, limits=LIMITS, plugins=[plug, spy])
     rng = np.random.default_rng(4)
     for k in range(200):
         m = _meas(theta=rng.normal(0, 0.05), q=rng.normal(0, 0.3))  # stays clear of +-30 %
@@ -223,7 +226,7 @@ def test_state_space_plugin_reproduces_builtin_inner_loop():
 
 def test_open_loop_mode_excitation_and_supervisor():
     exc = np.array([7.0, -7.0, 9.0])
-    fs = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, mode="open-loop",
+    fs = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, limits=LIMITS, mode="open-loop",
                         excitation={"u_lon": exc, "theta_ref": lambda t: 0.5})
     fs.set_reference(u_lon=1.0)
     outs = [fs.step(k * DT, _meas(theta=2.0)) for k in range(4)]
@@ -235,7 +238,7 @@ def test_open_loop_mode_excitation_and_supervisor():
 
 
 def test_mode_switch_to_cascade_is_bumpless():
-    fs = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, mode="open-loop")
+    fs = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, limits=LIMITS, mode="open-loop")
     fs.set_reference(u_lon=4.0, theta_ref=3.0)
     fs.step(0.0, _meas(theta=3.0, q=0.0))
     fs.set_mode("cascade")
@@ -247,7 +250,7 @@ def test_position_mode_flies_a_point_mass_to_the_set_point():
     """Perfect attitude tracking, NED point mass: checks the signs and that the loops converge."""
     g = 9.80665
     pg = PositionGains.for_vehicle(mass_kg=5.0, hover_collective_pct=60.0)
-    fs = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, mode="position", position_gains=pg)
+    fs = FlightSoftware(_gs("standard", STD), quad_plus(0.415), DT, limits=LIMITS, mode="position", position_gains=pg)
     fs.set_reference(x_ref=2.0, y_ref=-1.0, z_ref=-6.0, psi_ref=30.0)
     pos, vel, att = np.array([0.0, 0.0, -5.0]), np.zeros(3), {"phi": 0.0, "theta": 0.0}
     for k in range(int(20.0 / DT)):
@@ -267,10 +270,10 @@ def test_position_mode_flies_a_point_mass_to_the_set_point():
 
 def test_flight_software_input_errors():
     with pytest.raises(UnknownNameError, match="mode"):
-        FlightSoftware(_gs("s", STD), quad_plus(0.4), DT, mode="acro")
+        FlightSoftware(_gs("s", STD), quad_plus(0.4), DT, limits=LIMITS, mode="acro")
     with pytest.raises(UnknownNameError, match="excitation"):
-        FlightSoftware(_gs("s", STD), quad_plus(0.4), DT, excitation={"u_pitch": [1.0]})
-    fs = FlightSoftware(_gs("s", STD), quad_plus(0.4), DT)
+        FlightSoftware(_gs("s", STD), quad_plus(0.4), DT, limits=LIMITS, excitation={"u_pitch": [1.0]})
+    fs = FlightSoftware(_gs("s", STD), quad_plus(0.4), DT, limits=LIMITS)
     with pytest.raises(UnknownNameError, match="reference"):
         fs.set_reference(theta=1.0)
     with pytest.raises(ConfigError, match="dt"):

@@ -70,6 +70,13 @@ class _Reader:
                                   expected=f"every value {'>' if lo_open else '>='} {lo}", got=v)
         return tuple(float(x) for x in v)
 
+    def only(self, keys) -> None:
+        """Strict reading: a key this table does not define is an error naming it and the valid ones."""
+        for k in self.data:
+            if k not in keys:
+                raise ConfigError("unknown field", file=self.src, field=self._field(k), expected=f"one of {list(keys)}",
+                                  got=k)
+
     def str(self, key, default=None, choices=None) -> str:
         if key not in self.data:
             if default is None:
@@ -148,6 +155,19 @@ class ImuSpec:
 
 
 @dataclasses.dataclass(frozen=True)
+class CommandLimits:
+    """The flight software's saturations (``[commands]`` of the vehicle TOML): the one source of every command
+    and rate-set-point limit the simulator, the flight software, the batch runner and the envs apply."""
+
+    limit_pct: float  # roll/pitch axis command, +-%
+    rate_limit_dps: float  # roll/pitch rate set-point, +-deg/s
+    yaw_limit_pct: float  # yaw axis command, +-%
+    yaw_rate_limit_dps: float  # yaw rate set-point, +-deg/s
+
+    KEYS = ("limit_pct", "rate_limit_dps", "yaw_limit_pct", "yaw_rate_limit_dps")
+
+
+@dataclasses.dataclass(frozen=True)
 class RigSpec:
     """One-axis gimbal test-bed: light ring on a damped bearing, airframe on an elastic mount on the ring."""
 
@@ -186,12 +206,17 @@ class VehicleSpec:
     rotor: RotorSpec
     imu: ImuSpec
     rigs: dict  # axis -> RigSpec
-    command_limit_pct: float
+    commands: CommandLimits
     published: dict  # name -> PublishedModel
     sources: dict
     #: identification campaign: the band (rad/s) the PRBS is designed to excite (``[campaign]``); None: the
     #: vehicle has no open-loop PRBS campaign band of its own (rotorlab.excitation.ANTEOS_CAMPAIGN's is used)
     campaign_band_rad_s: tuple | None = None
+
+    @property
+    def command_limit_pct(self) -> float:
+        """Roll/pitch axis command saturation, % (``commands.limit_pct``)."""
+        return self.commands.limit_pct
 
     @property
     def n_rotors(self) -> int:
@@ -278,6 +303,11 @@ def _published(src, rd: _Reader | None) -> dict:
     return out
 
 
+def _commands(c: _Reader) -> CommandLimits:
+    c.only(CommandLimits.KEYS)
+    return CommandLimits(**{k: c.num(k, lo=0.0, lo_open=True) for k in CommandLimits.KEYS})
+
+
 def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> VehicleSpec:
     rd = _Reader(src, data)
     v = rd.table("vehicle")
@@ -343,7 +373,7 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         arm_m=a.num("arm_m", lo=0.0, lo_open=True), rotor_height_m=a.num("rotor_height_m", 0.0),
         body_size_m=a.vec("body_size_m", 3, lo=0.0, lo_open=True), cp_offset_m=a.vec("cp_offset_m", 3, (0, 0, 0)),
         rotor=rotor, imu=imu, rigs=rigs,
-        command_limit_pct=rd.table("commands").num("limit_pct", lo=0.0, lo_open=True),
+        commands=_commands(rd.table("commands")),
         published=_published(src, rd.table("published", required=False)),
         sources=dict(srcs) if isinstance(srcs, dict) else {},
         campaign_band_rad_s=_campaign_band(src, rd.table("campaign", required=False)),

@@ -49,8 +49,8 @@ class CascadeAxis:
 
     __slots__ = ("outer", "inner", "rate_limit_dps", "u_limit_pct", "wrap", "_ang_u", "_ang_prev")
 
-    def __init__(self, outer: LoopGains, inner: LoopGains, dt: float, rate_limit_dps: float = 150.0,
-                 u_limit_pct: float = 30.0, antiwindup: str | None = "clamp", wrap: bool = False):
+    def __init__(self, outer: LoopGains, inner: LoopGains, dt: float, rate_limit_dps: float, u_limit_pct: float,
+                 antiwindup: str | None = "clamp", wrap: bool = False):
         if not rate_limit_dps > 0:
             raise ConfigError(field="rate_limit_dps", expected="a limit > 0 deg/s", got=rate_limit_dps)
         if not u_limit_pct > 0:
@@ -101,27 +101,26 @@ class AttitudeController:
         Roll and pitch (and yaw) gains. Without a yaw axis, :data:`DEFAULT_YAW_GAINS` (heading P -> yaw-rate PI).
     dt : float
         Sample time, s.
-    rate_limit_dps, u_limit_pct : float
-        Roll/pitch rate set-point and command saturations.
-    yaw_rate_limit_dps, yaw_u_limit_pct : float
-        Yaw saturations.
+    limits : rotorlab.vehicles.spec.CommandLimits
+        Rate set-point and command saturations of roll/pitch and yaw (the vehicle's ``commands``).
     antiwindup : {'clamp', 'backcalc', None}
     schedule : list of (t_s, GainSet), optional
         Gain sets switched in (bumplessly) at time ``t_s`` (s), e.g. standard -> optimal in flight as in the
         A2-MINI/B flight test. Yaw switches only if the new set has a yaw axis.
     """
 
-    def __init__(self, gains: GainSet, dt: float, rate_limit_dps: float = 150.0, u_limit_pct: float = 30.0,
-                 yaw_rate_limit_dps: float = 90.0, yaw_u_limit_pct: float = 20.0,
-                 antiwindup: str | None = "clamp", schedule=None):
+    def __init__(self, gains: GainSet, dt: float, limits, antiwindup: str | None = "clamp", schedule=None):
         if not isinstance(gains, GainSet):
             raise ConfigError(field="gains", expected="a rotorlab.gains.GainSet", got=type(gains).__name__)
         self.gains = gains
         yaw = gains.axes.get("yaw", DEFAULT_YAW_GAINS)
-        self.roll = CascadeAxis(gains["roll"].outer, gains["roll"].inner, dt, rate_limit_dps, u_limit_pct, antiwindup)
-        self.pitch = CascadeAxis(gains["pitch"].outer, gains["pitch"].inner, dt, rate_limit_dps, u_limit_pct,
+        lim = limits
+        self.roll = CascadeAxis(gains["roll"].outer, gains["roll"].inner, dt, lim.rate_limit_dps, lim.limit_pct,
+                                antiwindup)
+        self.pitch = CascadeAxis(gains["pitch"].outer, gains["pitch"].inner, dt, lim.rate_limit_dps, lim.limit_pct,
                                  antiwindup)
-        self.yaw = CascadeAxis(yaw.outer, yaw.inner, dt, yaw_rate_limit_dps, yaw_u_limit_pct, antiwindup, wrap=True)
+        self.yaw = CascadeAxis(yaw.outer, yaw.inner, dt, lim.yaw_rate_limit_dps, lim.yaw_limit_pct, antiwindup,
+                               wrap=True)
         sched = sorted(schedule or [], key=lambda e: e[0])
         for t_s, gs in sched:
             if not isinstance(gs, GainSet) or not math.isfinite(t_s):

@@ -61,10 +61,9 @@ class FlightSoftware:
     dt : float
         Tick period, s (published: 0.02).
     mode : {'cascade', 'open-loop', 'position'}
-    rate_limit_dps, u_limit_pct : float
-        Roll/pitch rate set-point and command saturations (published: 150 deg/s; 30 % P2-A2, 40 % A2-MINI/B).
-    yaw_rate_limit_dps, yaw_u_limit_pct : float
-        Yaw saturations.
+    limits : rotorlab.vehicles.spec.CommandLimits
+        Roll/pitch and yaw rate set-point and command saturations: the vehicle's ``commands`` (its TOML's
+        ``[commands]``), possibly with a scenario's published values over them (``Setup.limits``).
     position_gains : PositionGains, optional
         Outer loops; default ``PositionGains()`` (5 kg, 60 % hover collective).
     supervisor : Supervisor, optional
@@ -80,19 +79,18 @@ class FlightSoftware:
     plugins : sequence of Plugin
     """
 
-    def __init__(self, gains: GainSet, mixer: Mixer, dt: float = 0.02, mode: str = "cascade",
-                 rate_limit_dps: float = 150.0, u_limit_pct: float = 30.0, yaw_rate_limit_dps: float = 90.0,
-                 yaw_u_limit_pct: float = 20.0, position_gains: PositionGains | None = None,
+    def __init__(self, gains: GainSet, mixer: Mixer, dt: float = 0.02, mode: str = "cascade", *, limits,
+                 position_gains: PositionGains | None = None,
                  supervisor: Supervisor | None = None, open_loop_axes=AXES, antiwindup: str | None = "clamp",
                  schedule=None, reference=None, excitation=None, plugins=()):
         if not isinstance(mixer, Mixer):
             raise ConfigError(field="mixer", expected="a rotorlab.sim.control.mixer.Mixer", got=type(mixer).__name__)
         self.dt = float(dt)
         self.mixer = mixer
-        self.u_limit_pct = float(u_limit_pct)
-        self.yaw_u_limit_pct = float(yaw_u_limit_pct)
-        self.attitude = AttitudeController(gains, dt, rate_limit_dps, u_limit_pct, yaw_rate_limit_dps,
-                                           yaw_u_limit_pct, antiwindup, schedule)
+        self.limits = limits
+        self.u_limit_pct = float(limits.limit_pct)
+        self.yaw_u_limit_pct = float(limits.yaw_limit_pct)
+        self.attitude = AttitudeController(gains, dt, limits, antiwindup, schedule)
         self.position_gains = position_gains or PositionGains()
         self.position = PositionHold(self.position_gains, dt)
         self.altitude = AltitudeHold(self.position_gains, dt)

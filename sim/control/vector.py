@@ -101,7 +101,7 @@ class VectorCascadeAxis:
     """Outer PD on the angle -> saturated rate set-point -> inner PID on the rate -> saturated command, for n
     simulations (:class:`~rotorlab.sim.control.cascade.CascadeAxis`)."""
 
-    def __init__(self, outer, inner, n: int, dt: float, rate_limit_dps: float = 150.0, u_limit_pct: float = 30.0,
+    def __init__(self, outer, inner, n: int, dt: float, rate_limit_dps: float, u_limit_pct: float,
                  wrap: bool = False):
         if not rate_limit_dps > 0:
             raise ConfigError(field="rate_limit_dps", expected="a limit > 0 deg/s", got=rate_limit_dps)
@@ -149,13 +149,14 @@ def _axis_gains(gains, axis: str, n: int) -> tuple[list, list]:
 
 class VectorAttitudeController:
     """Roll, pitch and yaw cascades for n simulations (:class:`~rotorlab.sim.control.cascade.AttitudeController`
-    without gain schedule). ``gains``: one GainSet for all simulations or a sequence of n."""
+    without gain schedule). ``gains``: one GainSet for all simulations or a sequence of n; ``limits``: the
+    vehicle's :class:`~rotorlab.vehicles.spec.CommandLimits`."""
 
-    def __init__(self, gains, n: int, dt: float, rate_limit_dps: float = 150.0, u_limit_pct: float = 30.0,
-                 yaw_rate_limit_dps: float = 90.0, yaw_u_limit_pct: float = 20.0):
-        self.roll = VectorCascadeAxis(*_axis_gains(gains, "roll", n), n, dt, rate_limit_dps, u_limit_pct)
-        self.pitch = VectorCascadeAxis(*_axis_gains(gains, "pitch", n), n, dt, rate_limit_dps, u_limit_pct)
-        self.yaw = VectorCascadeAxis(*_axis_gains(gains, "yaw", n), n, dt, yaw_rate_limit_dps, yaw_u_limit_pct,
+    def __init__(self, gains, n: int, dt: float, limits):
+        lim = limits
+        self.roll = VectorCascadeAxis(*_axis_gains(gains, "roll", n), n, dt, lim.rate_limit_dps, lim.limit_pct)
+        self.pitch = VectorCascadeAxis(*_axis_gains(gains, "pitch", n), n, dt, lim.rate_limit_dps, lim.limit_pct)
+        self.yaw = VectorCascadeAxis(*_axis_gains(gains, "yaw", n), n, dt, lim.yaw_rate_limit_dps, lim.yaw_limit_pct,
                                      wrap=True)
 
     def reset(self) -> None:
@@ -186,21 +187,4 @@ class VectorSupervisor:
         return np.where(angle_deg > band, hi, np.where(angle_deg < -band, lo, 0.0))
 
 
-def euler_deg_from_quats(quat_wxyz) -> np.ndarray:
-    """Aerospace (roll, pitch, yaw) in degrees of body (FLU) orientations in the z-up world, ``(n, 4) -> (n, 3)``
-    (:func:`rotorlab.sim.frames.euler_deg_from_quat` over rows)."""
-    q = np.asarray(quat_wxyz, dtype=float)
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    r00 = 1 - 2 * (y * y + z * z)
-    r10 = 2 * (x * y + w * z)
-    r20 = 2 * (x * z - w * y)
-    r21 = 2 * (y * z + w * x)
-    r22 = 1 - 2 * (x * x + y * y)
-    out = np.empty((q.shape[0], 3))
-    out[:, 0] = np.arctan2(r21, r22) * RAD2DEG
-    out[:, 1] = np.arcsin(np.clip(r20, -1.0, 1.0)) * RAD2DEG
-    out[:, 2] = -np.arctan2(r10, r00) * RAD2DEG
-    return out
-
-
-__all__ = ["VectorPID", "VectorCascadeAxis", "VectorAttitudeController", "VectorSupervisor", "euler_deg_from_quats"]
+__all__ = ["VectorPID", "VectorCascadeAxis", "VectorAttitudeController", "VectorSupervisor"]

@@ -29,6 +29,14 @@ def toward_ned(from_deg: float) -> np.ndarray:
     return -np.array([math.cos(a), math.sin(a), 0.0])
 
 
+def total_wind_ned(winds, t: float):
+    """The summed wind (m/s, NED) of wind disturbances over the control period starting at ``t`` (0 if none)."""
+    w = 0
+    for d in winds:
+        w = w + d.wind_ned(t)
+    return w
+
+
 class WindDisturbance(Disturbance):
     """A wind disturbance. Subclasses define ``wind_ned(t) -> (3,)``: the wind (m/s, NED) over the control
     period that starts at ``t`` (s)."""
@@ -40,8 +48,10 @@ class WindDisturbance(Disturbance):
 
     def values(self, sim) -> dict:
         # the total wind the coming control period is flown in (every wind disturbance writes the same sum)
-        t = sim.time
-        w = sum(d.wind_ned(t) for d in sim.disturbances if isinstance(d, WindDisturbance))
+        winds = sim.wind_disturbances
+        if winds[0] is not self:
+            return {}  # the first wind disturbance logs the sum
+        w = total_wind_ned(winds, sim.time)
         return {"wind_u": w[0], "wind_v": w[1], "wind_w": w[2]}
 
 
@@ -95,4 +105,4 @@ class MeanWind(WindDisturbance):
         return self._w
 
 
-__all__ = ["MeanWind", "WindDisturbance", "SampledWind", "WIND_COLUMNS", "toward_ned"]
+__all__ = ["MeanWind", "WindDisturbance", "SampledWind", "WIND_COLUMNS", "toward_ned", "total_wind_ned"]

@@ -47,7 +47,8 @@ class Setup:
 
     ``mode``/``reference``/``excitation``/``schedule`` configure the flight software; ``disturbances`` are
     composed into the physics; ``sensor_noise`` switches the IMU noise; ``u_limit_pct`` and
-    ``rate_limit_dps`` are the published saturations; ``extra_columns`` name scenario-specific log columns
+    ``rate_limit_dps`` override the vehicle's roll/pitch saturations (its ``[commands]``) where a test used other
+    values (None: the vehicle's; :meth:`limits`); ``extra_columns`` name scenario-specific log columns
     (name -> unit) filled by ``on_tick(sim, fs_out) -> dict``. A bench scenario (thrust stand) sets
     ``drive(sim, t) -> dict`` instead: it commands the rotor itself and returns the extra columns.
     """
@@ -59,13 +60,20 @@ class Setup:
     disturbances: list = dataclasses.field(default_factory=list)
     sensor_noise: bool = True
     u_limit_pct: float | None = None
-    rate_limit_dps: float = 150.0
+    rate_limit_dps: float | None = None
     open_loop_axes: tuple = ("roll", "pitch", "yaw")
     extra_columns: dict = dataclasses.field(default_factory=dict)
     on_tick: Callable | None = None
     noise_on: Callable | None = None  # noise_on(t) -> bool: when the requested IMU noise is on (default always)
     drive: Callable | None = None  # drive(sim, t) -> dict of extra columns; replaces the flight software (bench tests)
     notes: dict = dataclasses.field(default_factory=dict)
+
+
+    def limits(self, vehicle):
+        """The flight software's saturations in this scenario: the vehicle's, with this set-up's overrides."""
+        over = {k: v for k, v in (("limit_pct", self.u_limit_pct), ("rate_limit_dps", self.rate_limit_dps))
+                if v is not None}
+        return dataclasses.replace(vehicle.commands, **over) if over else vehicle.commands
 
 
 def merged_options(ctx: Context, defaults: dict) -> dict:

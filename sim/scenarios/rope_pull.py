@@ -26,15 +26,15 @@ DEFAULTS = {"pull_deg": -20.0, "t_pull_s": 1.0, "ramp_s": 0.8, "hold_s": 2.0, "l
 def setup(ctx: Context) -> Setup:
     o = merged_options(ctx, DEFAULTS)
     rope = RopePull(o["pull_deg"], o["t_pull_s"], o["ramp_s"], o["hold_s"], o["length_m"])
-    return Setup(mode="cascade", disturbances=[rope], rate_limit_dps=150.0,
-                 u_limit_pct=ctx.vehicle.command_limit_pct,
+    # the published saturations (+-40 %, +-150 deg/s) are the A2-MINI/B's [commands]
+    return Setup(mode="cascade", disturbances=[rope],
                  notes={"t_pull_s": rope.t_pull_s, "t_hold_s": rope.t_pull_s + rope.ramp_s,
                         "t_release_s": rope.t_release_s, "pull_deg": rope.pull_deg})
 
 
 def metrics(log, ctx: Context, setup: Setup) -> dict:
     n = setup.notes
-    lim = setup.u_limit_pct
+    lim = setup.limits(ctx.vehicle).limit_pct
     hold = _metrics.window(log, n["t_hold_s"], n["t_release_s"])
     after = _metrics.disturbance(log, "theta", n["t_release_s"], band=0.5)
     rel = _metrics.window(log, n["t_release_s"])

@@ -1,0 +1,124 @@
+"""The sensor protocol and the suite that samples sensors together at a control tick.
+
+A sensor turns one field of MuJoCo's data (``sensordata`` or ``act``) into readings in flight-software units.
+:meth:`Sensor.read` takes that field as a 1-D array (one simulation, :class:`~rotorlab.sim.simulator.Simulator`)
+or as a 2-D array with one row per simulation (``mujoco.batch``, :func:`rotorlab.sim.batch.run_batch`), so the
+scalar and the batched paths share one conversion.
+
+Noise is the suite's: the noisy channels of all its sensors draw together, so one seed gives one stream whatever
+reads it. At reset a bias is drawn for each sensor that has one (``normal(0, bias_std, n_channels)``, in suite
+order); at every noisy tick one ``standard_normal(n_noisy)`` vector covers every noisy channel in suite order, and
+a reading is ``value + (bias + std * z)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rotorlab.errors import ConfigError
+from rotorlab.scenes import PREFIX
+
+
+def sensor_slice(model, name: str) -> slice | None:
+    """Where MuJoCo sensor ``name`` (with or without the vehicle prefix) lives in ``sensordata``; None if absent."""
+    import mujoco
+
+    for full in (f"{PREFIX}{name}", name):
+        sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, full)
+        if sid >= 0:
+            adr, dim = int(model.sensor_adr[sid]), int(model.sensor_dim[sid])
+            return slice(adr, adr + dim)
+    return None
+
+
+class Sensor:
+    """Base class: one file per sensor, registered in :data:`rotorlab.sim.sensors.SENSORS`.
+
+    Subclasses set :attr:`name`, :attr:`channels` and :attr:`field`, find their data in ``__init__(model,
+    vehicle)`` (raising :class:`LookupError` when the model lacks it, e.g. a load cell off the thrust stand) and
+    implement :meth:`read`.
+    """
+
+    #: registry name
+    name: str = "sensor"
+    #: readings, name -> unit (flight-software units and frames)
+    channels: dict = {}
+    #: the MjData field :meth:`read` takes
+    field: str = "sensordata"
+
+    def __init__(self, model, vehicle):
+        self.noise_std = np.zeros(len(self.channels))  # per channel, in the channel's unit
+        self.bias_std = 0.0  # turn-on bias, drawn once per run, in the channels' unit
+
+    @property
+    def noisy(self) -> bool:
+        return bool(np.any(self.noise_std > 0) or self.bias_std > 0)
+
+    def read(self, x) -> np.ndarray:
+        """Noise-free readings ``(..., len(channels))`` from the MjData field ``x`` (1-D, or 2-D: one row per
+        simulation)."""
+        raise NotImplementedError
+
+    def _require(self, model, name: str) -> slice:
+        sl = sensor_slice(model, name)
+        if sl is None:
+            raise LookupError(f"the model has no MuJoCo sensor '{name}' for the {self.name} sensor")
+        return sl
+
+
+class SensorSuite:
+    """Sensors sampled together at a tick, with one seeded noise stream (module docstring).
+
+    Parameters
+    ----------
+    sensors : sequence of Sensor
+        In draw order.
+    """
+
+    def __init__(self, sensors):
+        self.sensors = list(sensors)
+        fields = {s.field for s in self.sensors}
+        if len(fields) > 1:
+            raise ConfigError(field="sensors", expected="sensors reading one MjData field", got=sorted(fields))
+        self.field = fields.pop() if fields else "sensordata"
+        self.channels = [c for s in self.sensors for c in s.channels]
+        self.units = {c: u for s in self.sensors for c, u in s.channels.items()}
+        self.slices, k = [], 0
+        for s in self.sensors:
+            self.slices.append(slice(k, k + len(s.channels)))
+            k += len(s.channels)
+        noisy = [s.noisy for s in self.sensors]
+        # the noise draw covers the noisy sensors only, in suite order (noise-free ones consume no draws)
+        self.n_noisy = sum(len(s.channels) for s, n in zip(self.sensors, noisy) if n)
+        self._noisy_cols = np.concatenate([np.arange(sl.start, sl.stop) for sl, n in zip(self.slices, noisy) if n]) \
+            if self.n_noisy else np.zeros(0, dtype=int)
+        self.noise_std = np.concatenate([s.noise_std for s, n in zip(self.sensors, noisy) if n]) \
+            if self.n_noisy else np.zeros(0)
+
+    def draw_bias(self, rng: np.random.Generator) -> np.ndarray:
+        """Turn-on biases of the noisy channels ``(n_noisy,)``: one ``normal(0, bias_std, n)`` per biased sensor."""
+        bias = np.zeros(self.n_noisy)
+        k = 0
+        for s in self.sensors:
+            if not s.noisy:
+                continue
+            n = len(s.channels)
+            if s.bias_std > 0:
+                bias[k:k + n] = rng.normal(0.0, s.bias_std, n)
+            k += n
+        return bias
+
+    def read(self, x, out=None) -> np.ndarray:
+        """Noise-free readings of every channel ``(..., n_channels)`` from the MjData field ``x``."""
+        if out is None:
+            out = np.empty(np.shape(x)[:-1] + (len(self.channels),))
+        for s, sl in zip(self.sensors, self.slices):
+            out[..., sl] = s.read(x)
+        return out
+
+    def add_noise(self, values: np.ndarray, bias: np.ndarray, z: np.ndarray) -> None:
+        """In place: ``values[..., noisy] += bias + std * z`` with ``z`` standard normals ``(..., n_noisy)``."""
+        if self._noisy_cols.size == values.shape[-1]:
+            values += bias + self.noise_std * z
+        else:
+            values[..., self._noisy_cols] += bias + self.noise_std * z

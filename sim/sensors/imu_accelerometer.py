@@ -1,0 +1,26 @@
+"""IMU accelerometer: specific force ``ax, ay, az`` (m/s^2, body FRD) at the IMU site, with white noise
+(``[imu] accel_noise_mps2``). MuJoCo's ``accelerometer`` sensor is an acceleration-stage sensor: it is current
+only after a full forward pass."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rotorlab.sim.frames import FLU_TO_FRD
+from rotorlab.sim.sensors.base import Sensor
+
+
+class ImuAccelerometer(Sensor):
+    name = "imu-accelerometer"
+    channels = {"ax": "m/s^2", "ay": "m/s^2", "az": "m/s^2"}
+
+    def __init__(self, model, vehicle):
+        super().__init__(model, vehicle)
+        self.slice = self._require(model, "accel")
+        self.noise_std = np.full(3, vehicle.imu.accel_noise_mps2)
+
+    def read(self, x) -> np.ndarray:
+        return x[..., self.slice] * FLU_TO_FRD
+
+
+__all__ = ["ImuAccelerometer"]
