@@ -21,9 +21,10 @@ class HoldPolicy:
 
     def __init__(self, env):
         e = env.unwrapped
-        self.a = np.zeros(env.action_space.shape, dtype=np.float32)
+        phys = np.zeros(env.action_space.shape)
         if e.scene_name == "free-flight":
-            self.a[0] = e.vehicle.hover_collective_pct
+            phys[0] = e.vehicle.hover_collective_pct
+        self.a = e.normalize_action(phys)
 
     def reset(self):
         pass

@@ -47,8 +47,9 @@ class Log:
 
     @property
     def dt(self) -> float:
-        """Nominal sample time (s): the median step."""
-        return float(np.median(np.diff(self.t))) if self.t.size > 1 else float("nan")
+        """Nominal sample time (s): the median step, to 12 significant digits (time stamps accumulated as
+        ``t0 + k dt`` carry round-off far below the 1e-3 uniformity tolerance; 0.02 is 0.02, not 0.0199999...)."""
+        return float(f"{np.median(np.diff(self.t)):.12g}") if self.t.size > 1 else float("nan")
 
     @property
     def columns(self) -> list[str]:
@@ -78,7 +79,7 @@ class Log:
         for c in u_cols + y_cols:
             _check_finite(self[c], c, self.t, self.source)
             if np.ptp(self[c]) == 0:
-                raise DataError(f"{self.source}: column '{c}' is constant ({self[c][0]!r}); "
+                raise DataError(f"{self.source}: column '{c}' is constant ({float(self[c][0]):.6g}); "
                                 "a constant signal carries no information for identification -- "
                                 "check the column name or the experiment")
         return (np.column_stack([self[c] for c in u_cols]), np.column_stack([self[c] for c in y_cols]))
@@ -121,13 +122,13 @@ def _check_time(t: np.ndarray, source: str, resample: bool) -> None:
         i = int(gap[0]) + 1
         raise DataError(f"{source}: gap in the time stamps at row {i}: {d[i - 1]:.6g} s after t = {t[i - 1]:.6g} s "
                         f"where the nominal step is {dt:.6g} s ({gap.size} gap(s) in all); load the pieces "
-                        "separately, or pass resample=True to interpolate across")
+                        "separately, or resample onto a uniform grid (rotorlab ident --resample; in Python load_log(..., resample=True))")
     off = np.flatnonzero(np.abs(d - dt) > UNIFORM_RTOL * dt)
     if off.size:
         i = int(off[0]) + 1
         raise DataError(f"{source}: non-uniform time stamps: step {d[i - 1]:.6g} s before row {i} "
                         f"(t = {t[i]:.6g} s), nominal {dt:.6g} s ({off.size} irregular step(s)); "
-                        "pass resample=True to interpolate onto a uniform grid")
+                        "resample onto a uniform grid (rotorlab ident --resample; in Python load_log(..., resample=True))")
 
 
 def _resample(t: np.ndarray, data: dict) -> tuple[np.ndarray, dict]:
@@ -193,11 +194,12 @@ def load_log(path, columns: Sequence[str] | None = None, *, column_map: Mapping[
     names = {rename.get(n, n): n for n in table.column_names}
     missing = [v for v in column_map.values() if v not in table.column_names]
     if missing:
-        raise DataError(f"{source}: column_map names column(s) {missing} that the file lacks; "
+        raise DataError(f"{source}: the column map names column(s) {missing} that the file lacks; "
                         f"file columns: {', '.join(table.column_names)}")
     if TIME_COLUMN not in names:
         raise DataError(f"{source}: no time column '{TIME_COLUMN}'; file columns: {', '.join(table.column_names)} "
-                        f"(map it with column_map={{'t': 'your_time_column'}})")
+                        f"(map it: rotorlab ident --column-map t=your_time_column; in Python "
+                        f"load_log(..., column_map={{'t': 'your_time_column'}}))")
     wanted = list(columns) if columns is not None else [n for n in names if n != TIME_COLUMN]
     absent = [c for c in wanted if c not in names]
     if absent:

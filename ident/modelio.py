@@ -26,9 +26,9 @@ import control as ct
 
 from rotorlab.atomic import write_json
 from rotorlab.errors import ConfigError
-from rotorlab.lti import as_ss, is_discrete
+from rotorlab.lti import as_ss, dc_gain, is_discrete, s_plane
 
-__all__ = ["FORMAT", "VERSION", "save_model", "load_model"]
+__all__ = ["FORMAT", "VERSION", "save_model", "load_model", "describe_model"]
 
 FORMAT = "rotorlab-model"
 VERSION = 1
@@ -199,3 +199,64 @@ def _vector(doc, key, file):
         raise ConfigError("not a list of numbers", file=file, field=key, expected="a non-empty list of finite numbers",
                           got=v)
     return [float(x) for x in v]
+
+
+def _roots_lines(kind: str, roots, dt: float) -> list[str]:
+    """One line per real root or conjugate pair, in rad/s (with natural frequency and damping for pairs)."""
+    out = []
+    s = s_plane(roots, dt)
+    z = np.asarray(roots, complex)
+    order = np.argsort(np.abs(s))
+    for i in order:
+        si, zi = s[i], z[i]
+        if si.imag < -1e-9:  # the pair is printed once, from its upper member
+            continue
+        zs = "" if not dt else (f"z = {zi.real:.4g}" + (f" +/- {abs(zi.imag):.4g}j" if abs(zi.imag) > 1e-9 else "") + ": ")
+        if not np.isfinite(si):
+            out.append(f"  {kind:5s} {zs}at the origin of z (a pure delay)")
+        elif abs(si.imag) > 1e-9:
+            wn = abs(si)
+            out.append(f"  {kind:5s} {zs}s = {si.real:.4g} +/- {si.imag:.4g}j rad/s (wn {wn:.4g} rad/s, zeta {-si.real / wn:.3g})")
+        else:
+            out.append(f"  {kind:5s} {zs}s = {si.real:.4g} rad/s")
+    return out or [f"  {kind:5s} none"]
+
+
+def describe_model(sys, delay_s: float = 0.0, units: dict | None = None, input=None, output=None) -> list[str]:
+    """A model for people: time base, order, delay, poles and zeros in rad/s (discrete ones mapped by
+    s = ln(z)/dt, with natural frequency and damping), and the DC gain with its units.
+
+    Parameters
+    ----------
+    sys : control.StateSpace or TransferFunction
+        The model, delay removed.
+    delay_s : float
+        Input delay, s.
+    units : dict, optional
+        ``{signal: unit}`` for the DC gain's unit.
+    input, output : list of str, optional
+        Signal names.
+    """
+    ss = as_ss(sys)
+    dt = float(ss.dt) if is_discrete(ss) else 0.0
+    units = units or {}
+    ins = list(input or [f"u{i}" for i in range(ss.ninputs)])
+    outs = list(output or [f"y{i}" for i in range(ss.noutputs)])
+    base = f"discrete, dt = {dt:g} s" if dt else "continuous"
+    delay = f"{delay_s:g} s" + (f" = {round(delay_s / dt)} samples" if dt else "")
+    L = [f"model {', '.join(ins)} -> {', '.join(outs)}: {base}, order {ss.nstates}, input delay {delay} "
+         "(poles and zeros below without it)"]
+    L += _roots_lines("pole", np.linalg.eigvals(np.asarray(ss.A, float)) if ss.nstates else [], dt)
+    try:
+        zeros = ct.zeros(ss) if ss.nstates else []
+    except Exception:  # noqa: BLE001 - slycot refuses some non-square systems; zeros are then not shown
+        zeros = None
+    L += _roots_lines("zero", zeros, dt) if zeros is not None else ["  zero  (not computed for this system)"]
+    K = dc_gain(ss)
+    for i, y in enumerate(outs):
+        for j, u in enumerate(ins):
+            unit = f" ({units[y]})/({units[u]})" if y in units and u in units else ""
+            g = K[i, j]
+            val = f"{g.real:.4g}" if np.isfinite(g) else "infinite (integrator)"
+            L.append(f"  DC gain {u} -> {y}: {val}{unit}")
+    return L

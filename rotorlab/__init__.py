@@ -16,11 +16,13 @@ try:
 except ImportError:  # gymnasium is a dependency; a stripped install still imports rotorlab
     pass
 else:
+    # max_episode_steps: the default episode_s (10 s) at the 50 Hz agent step; the env truncates at its own
+    # episode_s too, so a make(..., episode_s=...) with a longer episode also passes max_episode_steps=...
     for _id, _entry, _kw in (
         ("rotorlab/PitchRig-v0", "rotorlab.sim.env_rig:RigEnv", {"axis": "pitch"}),
         ("rotorlab/RollRig-v0", "rotorlab.sim.env_rig:RigEnv", {"axis": "roll"}),
         ("rotorlab/Hover-v0", "rotorlab.sim.env_hover:HoverEnv", {}),
     ):
         if _id not in _gym.registry:
-            _gym.register(id=_id, entry_point=_entry, kwargs=_kw)
+            _gym.register(id=_id, entry_point=_entry, kwargs=_kw, max_episode_steps=500)
     del _id, _entry, _kw, _gym

@@ -19,6 +19,9 @@ COMMANDS = {
     "pipeline": "pipeline",
     "montecarlo": "montecarlo",
     "view": "view",
+    "plot": "plot",
+    "bode": "bode",
+    "compare": "compare",
 }
 
 
@@ -27,6 +30,28 @@ from rotorlab.errors import RotorlabError
 
 class CLIError(RotorlabError):
     """A user-facing error raised by a command: printed without a traceback, exit status 2."""
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Descriptions kept as written (paragraphs), every option's default shown unless its help already says it
+    or there is none to show (None, False, an empty list)."""
+
+    def _get_help_string(self, action):
+        h = action.help or ""
+        d = action.default
+        if ("default" in h or d is None or d is False or d == [] or d is argparse.SUPPRESS
+                or isinstance(action, argparse._HelpAction)):
+            return h
+        return f"{h} (default: %(default)s)"
+
+
+def describe(doc: str) -> dict:
+    """``description=`` and ``formatter_class=`` for a sub-command's parser from its module docstring: the whole
+    text (not its first line cut mid-sentence), without reStructuredText backticks."""
+    import inspect
+
+    text = inspect.cleandoc(doc)
+    return {"description": text.replace("``", "").strip(), "formatter_class": HelpFormatter}
 
 
 def _available():
@@ -39,7 +64,10 @@ def _available():
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="rotorlab", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="rotorlab", formatter_class=HelpFormatter,
+        description="A virtual rotorcraft lab: MuJoCo digital twins, identification and structured H-inf tuning of "
+                    "multirotor attitude control. rotorlab COMMAND --help describes each command.")
     sub = parser.add_subparsers(dest="command", required=True)
     for name, mod in _available():
         p = mod.add_parser(sub)

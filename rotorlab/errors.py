@@ -25,6 +25,8 @@ class ConfigError(RotorlabError, ValueError):
         if expected is not None:
             body += ("; " if body else "") + f"expected {expected}"
         if got is not None:
+            if type(got).__module__ == "numpy" and hasattr(got, "item"):
+                got = got.item()  # a numpy scalar reads as 1.0, not np.float64(1.0)
             body += ("; " if body else "") + f"got {got!r}"
         if hint:
             body += f" ({hint})"

@@ -25,6 +25,8 @@ __all__ = [
     "c2d_zoh",
     "pid_tf",
     "pid2_ss",
+    "s_plane",
+    "dc_gain",
 ]
 
 
@@ -171,6 +173,25 @@ def negative_real_poles(sysd) -> np.ndarray:
     equivalent (see :func:`d2c_zoh`)."""
     ev = np.linalg.eigvals(np.asarray(as_ss(sysd).A, dtype=float))
     return ev[(np.abs(ev.imag) < 1e-9) & (ev.real <= 0)].real
+
+
+def s_plane(roots, dt: float = 0.0) -> np.ndarray:
+    """Roots in rad/s: continuous roots as they are, discrete ones mapped by ``s = ln(z) / dt`` (exact for the
+    poles of a ZOH discretisation; a root at z = 0, a pure delay, maps to -inf)."""
+    r = np.asarray(roots, dtype=complex)
+    if not dt:
+        return r
+    with np.errstate(divide="ignore"):
+        return np.log(r) / dt
+
+
+def dc_gain(sys) -> np.ndarray:
+    """Steady-state gain matrix (outputs x inputs): G(0) continuous, G(1) discrete; inf where a pole sits there."""
+    sys = as_ss(sys)
+    try:
+        return np.real_if_close(freqresp(sys, [0.0])[0])
+    except np.linalg.LinAlgError:
+        return np.full((sys.noutputs, sys.ninputs), np.inf)
 
 
 def d2c_zoh(sysd) -> ct.StateSpace:

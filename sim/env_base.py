@@ -20,6 +20,16 @@ A dict of parameter -> spread, sampled uniformly at every reset from the env's s
 
 The vehicle is rebuilt with ``dataclasses.replace`` and the scene recompiled; compiled simulators are cached per
 parameter set (LRU, :data:`SIM_CACHE_SIZE`), so a randomised reset costs one scene compile (tens of ms).
+
+Actions: normalised to [-1, 1]
+------------------------------
+Every env's ``action_space`` is ``Box(-1, 1)`` (what stable-baselines3 and gymnasium's checker expect); each
+component maps affinely onto its physical range, ``physical = mid + half * a`` with ``mid = (low + high) / 2``
+and ``half = (high - low) / 2`` from :attr:`RotorlabEnv.action_low` / :attr:`RotorlabEnv.action_high` (units
+in :attr:`RotorlabEnv.action_units`). ``info['action_physical']`` is the command actually applied, in those
+units; :meth:`RotorlabEnv.physical_action` and :meth:`RotorlabEnv.normalize_action` convert both ways
+(a controller written in physical units, e.g. :mod:`rotorlab.sim.env_baselines`, calls the latter).
+Components outside [-1, 1] are clipped (``info['action_clipped']``).
 """
 
 from __future__ import annotations
@@ -193,12 +203,26 @@ class RotorlabEnv(gym.Env):
         self._start_episode(options)
         return self._observe(), self._info()
 
-    def _bounds(self):
-        sp = self.action_space
-        if getattr(self, "_bounds_of", None) is not sp:
-            self._bounds_cache = (sp.low.astype(float).tolist(), sp.high.astype(float).tolist())
-            self._bounds_of = sp
-        return self._bounds_cache
+    def _set_actions(self, low, high, units) -> None:
+        """Physical range and units of the action components; the action space becomes ``Box(-1, 1)``."""
+        self.action_low = np.asarray(low, dtype=float)
+        self.action_high = np.asarray(high, dtype=float)
+        self.action_units = tuple(units)
+        n = self.action_low.size
+        self.action_space = box([-1.0] * n, [1.0] * n)
+        # plain lists: the per-step mapping is a few scalar operations (numpy calls cost more at n <= 4)
+        self._a_mid = ((self.action_low + self.action_high) / 2).tolist()
+        self._a_half = ((self.action_high - self.action_low) / 2).tolist()
+
+    def physical_action(self, action) -> np.ndarray:
+        """A normalised action (clipped to [-1, 1]) in physical units (:attr:`action_units`)."""
+        a = np.clip(np.asarray(action, dtype=float).ravel(), -1.0, 1.0)
+        return np.asarray(self._a_mid) + np.asarray(self._a_half) * a
+
+    def normalize_action(self, physical) -> np.ndarray:
+        """A physical action (:attr:`action_units`) as the normalised float32 action the env takes."""
+        p = np.asarray(physical, dtype=float).ravel()
+        return ((p - np.asarray(self._a_mid)) / np.asarray(self._a_half)).astype(np.float32)
 
     @property
     def valid_options(self) -> tuple:
@@ -207,15 +231,16 @@ class RotorlabEnv(gym.Env):
     def step(self, action):
         # plain-Python checks: for 1-4 components they are several times cheaper than numpy calls, per step
         a = np.asarray(action, dtype=float).ravel().tolist()
-        low, high = self._bounds()
-        if len(a) != len(low):
+        mid, half = self._a_mid, self._a_half
+        if len(a) != len(mid):
             raise ValueError(f"action has {len(a)} components; the action space has shape {self.action_space.shape}")
         if not all(map(math.isfinite, a)):
             raise ValueError(f"action {a} is not finite; the episode state is unchanged")
-        # documented rule: out-of-range components are clipped to the Box bounds
-        clipped = [lo if x < lo else (hi if x > hi else x) for x, lo, hi in zip(a, low, high)]
+        # documented rule: out-of-range components are clipped to [-1, 1], then scaled to physical units
+        clipped = [-1.0 if x < -1.0 else (1.0 if x > 1.0 else x) for x in a]
         was_clipped = clipped != a
-        effort = self._apply(clipped)
+        phys = [m + h * x for x, m, h in zip(clipped, mid, half)]
+        effort = self._apply(phys)
         sim = self.sim
         sim.tick()
         self._k += 1
@@ -225,6 +250,7 @@ class RotorlabEnv(gym.Env):
         truncated = (not terminated) and self._k >= self.n_steps
         info = self._info()
         info["action_clipped"] = was_clipped
+        info["action_physical"] = phys
         if terminated:
             info["stopped"] = reason
         return self._observe(), float(reward), terminated, truncated, info

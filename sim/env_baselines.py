@@ -1,6 +1,7 @@
 """Our flight software as policies for the Gymnasium envs: the bar an RL agent has to beat.
 
-Both read only the env's observation (IMU, set-point / target), exactly as an agent does, and run the
+Both read only the env's observation (IMU, set-point / target), exactly as an agent does, and return the
+normalised action an agent returns (``env.normalize_action`` of the physical command); they run the
 vehicle's cascade (:class:`~rotorlab.sim.control.cascade.CascadeAxis` on the rig,
 :class:`~rotorlab.sim.control.flight_software.FlightSoftware` in position mode in flight) with its gain set.
 """
@@ -26,6 +27,7 @@ class RigPIDPolicy:
         e = env.unwrapped
         if getattr(e, "control", None) != "command":
             raise ConfigError(field="env.control", expected="a rig env in 'command' mode", got=getattr(e, "control", None))
+        self.env = e
         g = resolve_gains(e.base_vehicle, gains if gains is not None else e.gains)[e.axis]
         if rate_limit_dps is None:
             rate_limit_dps = e.base_vehicle.commands.rate_limit_dps
@@ -37,7 +39,7 @@ class RigPIDPolicy:
     def __call__(self, obs) -> np.ndarray:
         angle, rate, setpoint = float(obs[0]), float(obs[1]), float(obs[2])
         u, _ = self.axis.step(setpoint, angle, rate)
-        return np.array([u], dtype=np.float32)
+        return self.env.normalize_action([u])
 
 
 class HoverPIDPolicy:
@@ -51,6 +53,7 @@ class HoverPIDPolicy:
         if getattr(e, "control", None) != "commands":
             raise ConfigError(field="env.control", expected="a hover env in 'commands' mode",
                               got=getattr(e, "control", None))
+        self.env = e
         v = e.base_vehicle
         pos = PositionGains.for_vehicle(v.mass_kg, v.hover_collective_pct, v.thrust_exponent)
         self.dt = e.control_dt_s
@@ -67,7 +70,7 @@ class HoverPIDPolicy:
         self.fs.set_reference(x_ref=float(obs[15]), y_ref=float(obs[16]), z_ref=float(obs[17]))
         out = self.fs.step(self._t, meas)
         self._t += self.dt
-        return np.array([out["u_col"], out["u_lat"], out["u_lon"], out["u_yaw"]], dtype=np.float32)
+        return self.env.normalize_action([out["u_col"], out["u_lat"], out["u_lon"], out["u_yaw"]])
 
 
 def episode_return(env, policy, seed: int, options: dict | None = None) -> tuple[float, int, bool]:

@@ -3,19 +3,20 @@
 One agent step = one 50 Hz flight-software tick on the same :class:`~rotorlab.sim.simulator.Simulator` as
 headless runs (free-flight scene, hover keyframe at 5 m).
 
-Actions (float32 Box, shape (4,))
----------------------------------
+Actions (float32 Box(-1, 1), shape (4,)), scaled to physical units (``info['action_physical']``)
+------------------------------------------------------------------------------------------------
 ``control='commands'`` (default)
     ``[collective, roll, pitch, yaw]`` axis commands in % on the flight software's absolute scale (the mixer
-    turns them into rotor commands): collective in [0, 100] %, roll/pitch/yaw within the vehicle's command
-    limit.
+    turns them into rotor commands): collective ``50 + 50 a`` in [0, 100] % (the hover collective is not at
+    a = 0: ``env.unwrapped.normalize_action([u_hover, 0, 0, 0])`` gives it), roll/pitch/yaw ``a * u_limit``
+    within the vehicle's command limit.
 ``control='attitude'``
-    ``[collective %, roll set-point deg, pitch set-point deg, heading set-point deg]`` in [0, 100] %,
-    +-``max_tilt_deg`` and +-180 deg; the vehicle's attitude cascade (:class:`FlightSoftware`, its ``gains``)
-    closes the attitude loops.
+    ``[collective %, roll set-point deg, pitch set-point deg, heading set-point deg]``: ``50 + 50 a`` %,
+    ``a * max_tilt_deg`` and ``a * 180`` deg; the vehicle's attitude cascade (:class:`FlightSoftware`, its
+    ``gains``) closes the attitude loops.
 
-Out-of-range actions are clipped component-wise to the Box bounds (``info['action_clipped']``); non-finite
-actions raise ``ValueError`` and leave the episode untouched.
+Out-of-range actions are clipped component-wise to [-1, 1] (``info['action_clipped']``); non-finite actions
+raise ``ValueError`` and leave the episode untouched.
 
 Observations (float32 Box, shape (18,), +6 with ``privileged``)
 --------------------------------------------------------------
@@ -83,9 +84,10 @@ class HoverEnv(RotorlabEnv):
         self.u_limit_pct = float(v.command_limit_pct)
         lim = self.u_limit_pct
         if control == "commands":
-            self.action_space = box([0.0, -lim, -lim, -lim], [100.0, lim, lim, lim])
+            self._set_actions([0.0, -lim, -lim, -lim], [100.0, lim, lim, lim], ["%"] * 4)
         else:
-            self.action_space = box([0.0, -max_tilt_deg, -max_tilt_deg, -180.0], [100.0, max_tilt_deg, max_tilt_deg, 180.0])
+            self._set_actions([0.0, -max_tilt_deg, -max_tilt_deg, -180.0], [100.0, max_tilt_deg, max_tilt_deg, 180.0],
+                              ["%", "deg", "deg", "deg"])
         hi = list(_BOUNDS) + ([180.0] * 3 + [1000.0] * 3 if self.privileged else [])
         self.observation_space = box([-x for x in hi], hi)
         self.gains = resolve_gains(v, gains)

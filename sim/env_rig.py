@@ -3,23 +3,25 @@
 One agent step = one 50 Hz flight-software tick (20 physics steps at 1 kHz) on the same
 :class:`~rotorlab.sim.simulator.Simulator` as headless runs.
 
-Actions (float32 Box, shape (1,))
----------------------------------
+Actions (float32 Box(-1, 1), shape (1,)), scaled to physical units (``info['action_physical']``)
+------------------------------------------------------------------------------------------------
 ``control='command'`` (default)
-    The axis command (pitch or roll control variable) in %, bounded by the vehicle's command limit
-    (+-30 % on the P2-A2).
+    The axis command (pitch or roll control variable): a = 1 is the vehicle's command limit in % (+-30 % on
+    the P2-A2, +-40 % on the A2-MINI/B), ``physical = a * u_limit_pct``.
 ``control='inner_loop'``
-    The rate set-point in deg/s (+-``rate_limit_dps``, default the vehicle's); the vehicle's inner PID (its ``gains``
-    set, :class:`~rotorlab.sim.control.pid.DiscretePID` with clamping anti-windup) closes the rate loop.
+    The rate set-point: ``physical = a * rate_limit_dps`` deg/s (default: the vehicle's rate limit); the
+    vehicle's inner PID (its ``gains`` set, :class:`~rotorlab.sim.control.pid.DiscretePID` with clamping
+    anti-windup) closes the rate loop.
 
-Actions outside the Box are clipped component-wise to its bounds (``info['action_clipped']`` says so);
-non-finite actions raise ``ValueError`` and leave the episode untouched.
+Actions outside [-1, 1] are clipped component-wise (``info['action_clipped']`` says so); non-finite actions
+raise ``ValueError`` and leave the episode untouched. ``env.unwrapped.normalize_action(u)`` converts a
+physical action.
 
 Observations (float32 Box; units deg, deg/s, %)
 -----------------------------------------------
 ``[angle, rate, set-point, last action]``: the IMU's attitude estimate and gyro rate of the rig axis
 (through the elastic IMU mount, with seeded noise and bias when ``sensor_noise``), the angle set-point, and
-the last applied (clipped) action. With ``privileged=True`` the true airframe angle and rate follow. Bounds:
+the last applied (clipped) action in physical units (% or deg/s). With ``privileged=True`` the true airframe angle and rate follow. Bounds:
 angle and set-point +-90 deg, rates +-1000 deg/s (a gyro's range: readings saturate there).
 
 Task and reward
@@ -96,14 +98,14 @@ class RigEnv(RotorlabEnv):
         self.u_limit_pct = float(self.base_vehicle.command_limit_pct)
         self.gains = resolve_gains(self.base_vehicle, gains)
         if control == "command":
-            bound = self.u_limit_pct
+            bound, unit = self.u_limit_pct, "%"
         else:
             if rate_limit_dps is None:
                 rate_limit_dps = self.base_vehicle.commands.rate_limit_dps
             if not rate_limit_dps > 0:
                 raise ConfigError(field="rate_limit_dps", expected="a limit > 0 deg/s", got=rate_limit_dps)
-            bound = float(rate_limit_dps)
-        self.action_space = box([-bound], [bound])
+            bound, unit = float(rate_limit_dps), "deg/s"
+        self._set_actions([-bound], [bound], [unit])
         lo = [-ANGLE_BOUND_DEG, -RATE_BOUND_DPS, -ANGLE_BOUND_DEG, -bound]
         if self.privileged:
             lo += [-ANGLE_BOUND_DEG, -RATE_BOUND_DPS]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import time
 from pathlib import Path
 
 
@@ -34,6 +35,9 @@ class RunResult:
     out_dir: Path | None
     stopped: str | None  # why the run stopped early, or None
     poses: object = None  # rotorlab.sim.poses.PoseTrack with run_scenario(record_poses=True)
+    #: wall-clock seconds: ``build_s`` (model, simulator, flight software), ``sim_s`` (the closed loop),
+    #: ``score_s`` (metrics and writing); kept out of ``info`` so run.json stays bit-identical per seed
+    timing: dict = dataclasses.field(default_factory=dict)
 
     @property
     def metrics(self) -> dict:
@@ -75,6 +79,7 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     records the reason in ``run.json`` under ``stopped``. ``record_poses`` keeps the body poses, rotor thrusts,
     wind and tendon paths of every tick in ``RunResult.poses`` (for :func:`rotorlab.sim.rerun_log.record_run`).
     """
+    t_start = time.perf_counter()
     mod = scenarios.get(name)
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
     scene = scene or mod.SCENES[0]
@@ -103,7 +108,9 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
         from rotorlab.sim.poses import PoseTrack
 
         poses = PoseTrack(sim, n_ticks + 1)
+    t_loop = time.perf_counter()
     stopped = _loop(sim, fs, log, n_ticks, setup, progress, poses)
+    t_done = time.perf_counter()
     info = {
         "scenario": name, "vehicle": v.name, "scene": scene, "seed": seed, "duration_s": duration_s,
         "gains": gs.name if gs else None, "gain_values": _gain_dict(gs), "control_dt_s": sim.control_dt_s,
@@ -113,7 +120,8 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     metrics_fn = getattr(mod, "metrics", None)
     info["metrics"] = metrics_fn(log, ctx, setup) if metrics_fn else {}
     out_dir = write_run(out, log, info) if out is not None else None
-    return RunResult(log, info, out_dir, stopped, poses.trimmed() if poses is not None else None)
+    timing = {"build_s": t_loop - t_start, "sim_s": t_done - t_loop, "score_s": time.perf_counter() - t_done}
+    return RunResult(log, info, out_dir, stopped, poses.trimmed() if poses is not None else None, timing)
 
 
 def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, progress: bool,

@@ -2,6 +2,7 @@
 and the PID baseline as a closed-loop ground truth."""
 
 import os
+import warnings
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -50,16 +51,37 @@ def _quiet(env_id, **kw):
 ])
 def test_check_env_passes(env_id, kw):
     env = gym.make(env_id, disable_env_checker=True, **kw)
-    with pytest.warns(UserWarning, match="symmetric and normalized"):  # documented physical units, not [-1, 1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # not one warning from gymnasium's checker
         check_env(env.unwrapped, skip_render_check=True)
     assert env.observation_space.dtype == np.float32 and env.action_space.dtype == np.float32
+    assert np.all(env.action_space.low == -1.0) and np.all(env.action_space.high == 1.0)
+    assert env.spec.max_episode_steps == 500
+
+
+def test_actions_are_normalised_and_scaled_to_physical_units():
+    """a in [-1, 1] maps affinely onto the documented physical range; info reports the applied command."""
+    env = _quiet("rotorlab/PitchRig-v0")
+    env.reset(seed=0)
+    lim = env.base_vehicle.command_limit_pct
+    assert env.action_units == ("%",) and env.action_high[0] == lim == 30.0
+    obs, _, _, _, info = env.step([0.5])
+    assert info["action_physical"] == [0.5 * lim] and obs[3] == pytest.approx(0.5 * lim)
+    assert env.normalize_action([0.5 * lim])[0] == pytest.approx(0.5)
+    hover = _quiet("rotorlab/Hover-v0", control="attitude")
+    hover.reset(seed=0)
+    _, _, _, _, info = hover.step([-1.0, 0.0, 1.0, 0.5])
+    assert info["action_physical"] == [0.0, 0.0, 30.0, 90.0]  # collective [0, 100] %, tilt +-30 deg, heading +-180 deg
+    assert hover.action_units == ("%", "deg", "deg", "deg")
+    np.testing.assert_allclose(hover.physical_action(hover.normalize_action([55.0, 3.0, -4.0, 10.0])),
+                               [55.0, 3.0, -4.0, 10.0], rtol=1e-6)
 
 
 def test_make_vec_sync():
     venv = gym.make_vec("rotorlab/PitchRig-v0", num_envs=2, vectorization_mode="sync")
     obs, _ = venv.reset(seed=5)
     assert obs.shape == (2, 4)
-    obs2, rew, term, trunc, _ = venv.step(np.array([[3.0], [-3.0]], dtype=np.float32))
+    obs2, rew, term, trunc, _ = venv.step(np.array([[0.1], [-0.1]], dtype=np.float32))
     assert obs2.shape == (2, 4) and rew.shape == (2,) and not term.any()
     # the two sub-envs draw different set-points and noise
     assert obs[0, 2] != obs[1, 2]
@@ -72,7 +94,7 @@ def _rollout(env, actions):
 
 def test_seeding_is_reproducible():
     env = _quiet("rotorlab/PitchRig-v0")
-    acts = np.random.default_rng(0).uniform(-10, 10, (30, 1))
+    acts = np.random.default_rng(0).uniform(-0.3, 0.3, (30, 1))
     o1 = env.reset(seed=11)[0]
     r1 = _rollout(env, acts)
     o2 = env.reset(seed=11)[0]
@@ -109,7 +131,7 @@ def test_save_restore_is_exact_through_a_rope_pull():
     rope = pytest.importorskip("rotorlab.sim.disturbances.rope_pull")
     env = _quiet("rotorlab/PitchRig-v0", task="regulation", disturbances=[rope.RopePull(t_pull_s=0.6, ramp_s=0.3)])
     env.reset(seed=0)
-    acts = np.full((90, 1), 2.0)
+    acts = np.full((90, 1), 2.0 / 30.0)  # 2 % of command
     _rollout(env, acts[:20])
     snap = env.save_state()
     first = _rollout(env, acts[20:])
@@ -122,19 +144,19 @@ def test_out_of_range_action_is_clipped_to_bounds():
     a, b = _quiet("rotorlab/PitchRig-v0"), _quiet("rotorlab/PitchRig-v0")
     a.reset(seed=2)
     b.reset(seed=2)
-    lim = float(a.action_space.high[0])
     oa, _, _, _, ia = a.step([1e6])
-    ob, _, _, _, ib = b.step([lim])
+    ob, _, _, _, ib = b.step([1.0])
     np.testing.assert_array_equal(oa, ob)
     assert ia["action_clipped"] and not ib["action_clipped"]
-    assert oa[3] == pytest.approx(lim)  # the observation reports the applied (clipped) action
+    # the observation reports the applied (clipped) action, in % of command
+    assert oa[3] == pytest.approx(a.base_vehicle.command_limit_pct)
 
 
 def test_nan_action_raises_and_leaves_the_episode_intact():
     a, b = _quiet("rotorlab/PitchRig-v0"), _quiet("rotorlab/PitchRig-v0")
     a.reset(seed=4)
     b.reset(seed=4)
-    acts = np.full((10, 1), 4.0)
+    acts = np.full((10, 1), 4.0 / 30.0)
     _rollout(a, acts[:5])
     _rollout(b, acts[:5])
     with pytest.raises(ValueError, match="not finite"):
@@ -206,7 +228,7 @@ def test_inner_loop_mode_closes_the_rate_loop():
     env.reset(seed=0, options={"task": "regulation"})
     rates = []
     for _ in range(150):  # 3 s at 5 deg/s: about 11 deg, inside the +-30 deg stops
-        obs, *_ = env.step([5.0])
+        obs, *_ = env.step(env.normalize_action([5.0]))
         rates.append(obs[5])
     err = 5.0 - np.array(rates)
     # the integral drives the true rate to the set-point (published inner gains: kp/ki = 0.4 s, slow tail)

@@ -1,5 +1,12 @@
-"""``rotorlab ident LOG --method ... --input U --output Y --out model.json``: identify a model from a log,
-print its VAF (on cross-validation data when given) and write the model JSON that ``rotorlab tune`` reads."""
+"""Identify a discrete model from a log and write the model JSON that rotorlab tune reads.
+
+Prints the model (time base, order, delay, poles and zeros in rad/s with natural frequency and damping, DC
+gain with units) and its VAF on the identification data and, with --cv-log or --cv-split, on
+cross-validation data. Methods: moesp (PI-MOESP), pbsid (predictor-based, for closed-loop data), lms-kung
+(LMS impulse response + Kung realisation), oe (output-error grey-box fit of --structure) and hinf-match
+(H-inf matching of --structure to a PI-MOESP model). The LOG is a rotorlab Parquet log or a CSV file with a
+header row; --column-map renames CSV columns, --resample interpolates uneven time stamps.
+"""
 
 from __future__ import annotations
 
@@ -8,26 +15,46 @@ STRUCTURES = ("rate-tf", "rigid-rig", "pitch")
 
 
 def add_parser(sub):
-    p = sub.add_parser("ident", help="identify a model from a log and write it as JSON",
-                       description=__doc__.splitlines()[0])
-    p.add_argument("log", help="Parquet log (rotorlab format) or CSV with a 't' column")
-    p.add_argument("--method", required=True, choices=METHODS)
+    from rotorlab.cli import describe
+
+    p = sub.add_parser("ident", help="identify a model from a log and write it as JSON", **describe(__doc__))
+    p.add_argument("log", help="Parquet log (rotorlab format) or CSV with a 't' column (see --column-map)")
+    p.add_argument("--method", required=True, choices=METHODS, help="identification method")
     p.add_argument("--input", required=True, help="input column(s), comma-separated")
     p.add_argument("--output", required=True, help="output column(s), comma-separated")
-    p.add_argument("--order", type=int, default=4, help="model order (black-box methods; default 4)")
-    p.add_argument("--horizon", type=int, default=40, help="MOESP block rows p (default 40, as published)")
-    p.add_argument("--past", type=int, default=11, help="PBSID past window (default 11, as published)")
-    p.add_argument("--future", type=int, default=7, help="PBSID future window (default 7, as published)")
-    p.add_argument("--taps", type=int, default=100, help="LMS impulse-response taps (default 100)")
-    p.add_argument("--delay", default="0", help="input delay in samples, or 'auto' to estimate it (default 0)")
-    p.add_argument("--max-delay", type=int, default=20, help="largest delay tried by --delay auto (samples)")
+    p.add_argument("--order", type=int, default=4, help="model order (black-box methods)")
+    p.add_argument("--horizon", type=int, default=40, help="MOESP block rows p (40 as published)")
+    p.add_argument("--past", type=int, default=11, help="PBSID past window, samples (11 as published)")
+    p.add_argument("--future", type=int, default=7, help="PBSID future window, samples (7 as published)")
+    p.add_argument("--taps", type=int, default=100, help="LMS impulse-response taps")
+    p.add_argument("--delay", default="0", help="input delay in samples, or 'auto' to estimate it")
+    p.add_argument("--max-delay", type=int, default=20, help="largest delay tried by --delay auto, samples")
     p.add_argument("--structure", default="rate-tf", choices=STRUCTURES,
-                   help="grey-box structure for oe / hinf-match (default rate-tf: K(s+z)/(s^2+as+b))")
+                   help="grey-box structure for oe / hinf-match (rate-tf: K(s+z)/(s^2+as+b))")
+    p.add_argument("--column-map", action="append", default=[], metavar="OURS=FILE",
+                   help="use the file's column FILE as OURS, e.g. t=time or q=pitch_rate (repeatable, or comma-separated)")
+    p.add_argument("--resample", action="store_true",
+                   help="interpolate onto a uniform grid at the median time step instead of refusing uneven time stamps")
     cv = p.add_mutually_exclusive_group()
     cv.add_argument("--cv-log", help="separate cross-validation log")
     cv.add_argument("--cv-split", type=float, help="fraction of LOG used to identify; the rest cross-validates")
     p.add_argument("--out", required=True, help="model JSON to write")
     return p
+
+
+def parse_column_map(items) -> dict:
+    """``["t=time", "q=pitch_rate,u=cmd"]`` -> ``{"t": "time", "q": "pitch_rate", "u": "cmd"}``."""
+    from rotorlab.cli import CLIError
+
+    out = {}
+    for item in (x.strip() for it in items for x in it.split(",")):
+        if not item:
+            continue
+        ours, sep, theirs = item.partition("=")
+        if not sep or not ours.strip() or not theirs.strip():
+            raise CLIError(f"--column-map expects OURS=FILE_COLUMN (e.g. t=time), got '{item}'")
+        out[ours.strip()] = theirs.strip()
+    return out
 
 
 def _structure(name: str):
@@ -91,10 +118,12 @@ def run(args) -> int:
 
     u_cols = [c.strip() for c in args.input.split(",") if c.strip()]
     y_cols = [c.strip() for c in args.output.split(",") if c.strip()]
+    cmap = parse_column_map(args.column_map)
     try:
-        log = load_log(args.log, columns=u_cols + y_cols)
+        log = load_log(args.log, columns=u_cols + y_cols, column_map=cmap, resample=args.resample)
         if args.cv_log:
-            id_log, cv_log = log, load_log(args.cv_log, columns=u_cols + y_cols)
+            id_log, cv_log = log, load_log(args.cv_log, columns=u_cols + y_cols, column_map=cmap,
+                                           resample=args.resample)
             if abs(cv_log.dt - log.dt) > 1e-9 * log.dt:
                 raise CLIError(f"--cv-log {args.cv_log} has dt = {cv_log.dt} s, the log {log.dt} s")
         elif args.cv_split is not None:
@@ -132,6 +161,9 @@ def run(args) -> int:
     except (DataError, ConfigError, ValueError) as exc:
         raise CLIError(str(exc)) from exc
     units = {c: log.units[c] for c in u_cols + y_cols if c in log.units}
+    from rotorlab.ident.modelio import describe_model
+
+    print("\n".join(describe_model(disc.sys, delay * dt, units, u_cols, y_cols)))
     save_model(args.out, to_save, vaf=np.asarray(score), input=u_cols, output=y_cols, units=units,
                delay_s=delay * dt, extra={"log": str(args.log), "cv": args.cv_log or args.cv_split})
     print(f"wrote {args.out}")

@@ -1,11 +1,12 @@
-"""``rotorlab montecarlo SCENARIO --vehicle V --n 1000 --vary mass,inertia,delay,wind [--executor ...]``:
-scenario Monte Carlo over seeded parameter distributions of the twin.
+"""Scenario Monte Carlo over seeded parameter spreads of the twin (mass, inertia, delay, wind).
 
-Each sample ``i`` draws its parameters and its run seed from child ``i`` of ``SeedSequence(--seed)``, so the
-numbers do not depend on the executor or the batch size. The varied twin is ``dataclasses.replace`` of the
-vehicle spec. Results: one Parquet of metrics per batch (``batch-0000.parquet``, ...) and ``summary.json``
-(quantiles of every metric and the fraction of runs that stopped early). Runs go through the process/Dask
-executor; batched in-process MuJoCo stepping (``mujoco.batch``) is not used yet.
+Each sample i draws its parameters and its run seed from child i of SeedSequence(--seed), so the numbers do
+not depend on the executor or the batch size. --vary takes NAME or NAME=SPREAD items: mass and inertia are
+scaled by a factor uniform in [1 - SPREAD, 1 + SPREAD] (default 0.1), delay adds uniform [0, SPREAD] s of
+transport delay (default 0.02 s), wind sets a mean wind uniform in [0, SPREAD] m/s (default 5; gust, hover
+and prbs-flight only). Writes one Parquet of metrics per batch (batch-0000.parquet, ...) and summary.json
+(mean, std and 5/50/95 % quantiles of every metric, the fraction of runs that stopped early), and prints the
+statistics of the scenario's key metrics.
 """
 
 from __future__ import annotations
@@ -15,51 +16,84 @@ from pathlib import Path
 
 import numpy as np
 
-#: parameter -> (distribution, spread): multiplicative uniform +-spread for mass and inertia, additive
+#: parameter -> default spread: multiplicative uniform +-spread for mass and inertia, additive
 #: uniform [0, spread] s of extra transport delay, mean wind uniform in [0, spread] m/s
 VARY = {"mass": 0.10, "inertia": 0.10, "delay": 0.02, "wind": 5.0}
+VARY_UNITS = {"mass": "relative", "inertia": "relative", "delay": "s", "wind": "m/s"}
 WIND_OPTION = {"gust": "mean_wind_mps", "hover": "wind_mps", "prbs-flight": "wind_mps"}
 
 
 def add_parser(sub):
-    p = sub.add_parser("montecarlo", help="scenario Monte Carlo over seeded vehicle/wind parameter spreads")
-    p.add_argument("scenario")
-    p.add_argument("--vehicle", default="anteos-p2a2")
-    p.add_argument("--gains", default=None, help="gain set name or gains TOML (default standard)")
+    from rotorlab.cli import describe
+
+    p = sub.add_parser("montecarlo", help="scenario Monte Carlo over seeded vehicle/wind parameter spreads",
+                       **describe(__doc__))
+    p.add_argument("scenario", help="scenario name (see rotorlab list)")
+    p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name or vehicle TOML path")
+    p.add_argument("--gains", default=None, help="gain set name or gains TOML (default: the vehicle's standard set)")
     p.add_argument("--n", type=int, default=100, help="number of runs")
-    p.add_argument("--vary", default="mass,inertia,delay", help=f"comma list from {','.join(VARY)}")
+    p.add_argument("--vary", default="mass,inertia,delay",
+                   help="comma list of NAME or NAME=SPREAD, NAME from " +
+                        ", ".join(f"{k} (spread {v:g} {VARY_UNITS[k]})" for k, v in VARY.items()))
     p.add_argument("--duration", type=float, default=None, help="run duration, s (default: the scenario's)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="master seed of the parameter draws and the runs")
     p.add_argument("--batch", type=int, default=50, help="runs per Parquet batch")
-    p.add_argument("--executor", default="local", help="local, serial, dask or dask://HOST:PORT")
-    p.add_argument("--workers", type=int, default=None)
+    p.add_argument("--executor", default="local", help="local (processes), serial, dask or dask://HOST:PORT")
+    p.add_argument("--workers", type=int, default=None, help="worker processes (default: the executor's choice)")
     p.add_argument("--out", default=None, help="output folder (default runs/montecarlo-SCENARIO-VEHICLE-seedN)")
     return p
 
 
-def draw(vehicle, vary, seed_seq):
-    """Varied vehicle spec, scenario options and run seed of one sample."""
+def parse_vary(text: str) -> dict:
+    """``"mass=0.2,delay"`` -> ``{"mass": 0.2, "delay": 0.02}`` (a bare name takes its default spread)."""
+    from rotorlab.cli import CLIError
+
+    out = {}
+    for item in (x.strip() for x in text.split(",")):
+        if not item:
+            continue
+        name, _, val = item.partition("=")
+        name = name.strip()
+        if name not in VARY:
+            raise CLIError(f"--vary: unknown parameter '{name}'; expected one of {', '.join(VARY)} (as NAME or "
+                           "NAME=SPREAD)")
+        if not val:
+            out[name] = VARY[name]
+            continue
+        try:
+            spread = float(val)
+        except ValueError:
+            raise CLIError(f"--vary {name}: expected a number as the spread, got '{val}'") from None
+        if not (spread >= 0 and np.isfinite(spread)) or (name in ("mass", "inertia") and spread >= 1):
+            raise CLIError(f"--vary {name}: expected a spread >= 0" + (" and < 1 (a relative scale)"
+                           if name in ("mass", "inertia") else "") + f", got {spread:g}")
+        out[name] = spread
+    return out
+
+
+def draw(vehicle, vary: dict, seed_seq):
+    """Varied vehicle spec, scenario options and run seed of one sample; ``vary`` maps a parameter to its spread."""
     rng = np.random.default_rng(seed_seq)
     spec, params = vehicle, {}
     if "mass" in vary:
-        params["mass_scale"] = float(rng.uniform(1 - VARY["mass"], 1 + VARY["mass"]))
+        params["mass_scale"] = float(rng.uniform(1 - vary["mass"], 1 + vary["mass"]))
         spec = dataclasses.replace(spec, mass_kg=spec.mass_kg * params["mass_scale"])
     if "inertia" in vary:
-        params["inertia_scale"] = float(rng.uniform(1 - VARY["inertia"], 1 + VARY["inertia"]))
+        params["inertia_scale"] = float(rng.uniform(1 - vary["inertia"], 1 + vary["inertia"]))
         spec = dataclasses.replace(spec, inertia_kgm2=tuple(x * params["inertia_scale"] for x in spec.inertia_kgm2))
     if "delay" in vary:
-        params["extra_delay_s"] = float(rng.uniform(0.0, VARY["delay"]))
+        params["extra_delay_s"] = float(rng.uniform(0.0, vary["delay"]))
         spec = dataclasses.replace(spec, rotor=dataclasses.replace(
             spec.rotor, delay_s=tuple(d + params["extra_delay_s"] for d in spec.rotor.delay_s)))
     if "wind" in vary:
-        params["wind_mps"] = float(rng.uniform(0.0, VARY["wind"]))
+        params["wind_mps"] = float(rng.uniform(0.0, vary["wind"]))
     params["run_seed"] = int(rng.integers(2**31))
     return spec, params
 
 
 def run_sample(task: dict) -> dict:
     """One Monte Carlo run (picklable task): flat metrics plus the drawn parameters."""
-    from rotorlab.pipeline.stages.report import flatten_metrics
+    from rotorlab.keymetrics import flatten_metrics
     from rotorlab.sim.runner import run_scenario
 
     spec, params = draw(task["vehicle"], task["vary"], task["seed_seq"])
@@ -87,10 +121,7 @@ def run(args) -> int:
     from rotorlab.sim.runner import resolve_gains
     from rotorlab.vehicles import load_vehicle
 
-    vary = [v.strip() for v in args.vary.split(",") if v.strip()]
-    bad = [v for v in vary if v not in VARY]
-    if bad:
-        raise CLIError(f"--vary: unknown parameter '{bad[0]}'; valid: {', '.join(VARY)}")
+    vary = parse_vary(args.vary)
     if args.n < 1 or args.batch < 1:
         raise CLIError("--n and --batch must be >= 1")
     try:
@@ -114,7 +145,7 @@ def run(args) -> int:
                 pq.write_table(tbl, tmp)
             rows += batch
     summary = {"scenario": args.scenario, "vehicle": v.name, "gains": gains.name, "n": args.n, "seed": args.seed,
-               "vary": {k: VARY[k] for k in vary},
+               "vary": vary,
                "fraction_stopped": float(np.mean([bool(r["stopped"]) for r in rows])),
                "metrics": {}}
     for k in sorted(set().union(*rows)):
@@ -124,5 +155,27 @@ def run(args) -> int:
             summary["metrics"][k] = {"mean": float(vals.mean()), "std": float(vals.std()), "p05": float(q[0]),
                                      "p50": float(q[1]), "p95": float(q[2]), "n": int(vals.size)}
     atomic.write_json(out / "summary.json", summary)
-    print(f"{args.n} runs of {args.scenario} -> {out} (stopped early: {summary['fraction_stopped']:.1%})")
+    print("\n".join(statistics_lines(summary)))
+    print(f"wrote {out} (summary.json, batch-*.parquet)")
     return 0
+
+
+def statistics_lines(summary: dict, max_rows: int = 12) -> list[str]:
+    """The Monte Carlo statistics of the scenario's key metrics, one line each with its unit."""
+    from rotorlab.keymetrics import fmt, key_rows, lookup
+
+    vary = ", ".join(f"{k} {v:g} {VARY_UNITS[k]}" for k, v in summary["vary"].items()) or "nothing"
+    L = [f"{summary['n']} runs of {summary['scenario']} on {summary['vehicle']}, gains {summary['gains']}, "
+         f"seed {summary['seed']}; varied: {vary}; stopped early: {100 * summary['fraction_stopped']:.1f} %"]
+    stats = summary["metrics"]
+    means = {k: v["mean"] for k, v in stats.items()}
+    rows = key_rows(summary["scenario"], means, rest=False) or key_rows(summary["scenario"], means)[:max_rows]
+    if not rows:
+        return L + ["no metric was scored (every run stopped early?)"]
+    w = max(len(f"{label} [{unit}]") for _, label, unit, _ in rows)
+    L.append(f"  {'metric':<{w}}  {'mean':>9} {'std':>9} {'p05':>9} {'p50':>9} {'p95':>9}")
+    for key, label, unit, _ in rows[:max_rows]:
+        st = lookup(stats, key)
+        name = f"{label} [{unit}]" if unit else label
+        L.append(f"  {name:<{w}}  " + " ".join(f"{fmt(st[q]):>9}" for q in ("mean", "std", "p05", "p50", "p95")))
+    return L

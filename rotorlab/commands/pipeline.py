@@ -1,5 +1,10 @@
-"""``rotorlab pipeline --vehicle V [--out DIR] [--quick] [--executor local|dask|dask://HOST:PORT] [--seed N]``:
-twin experiment -> identification -> bootstrap -> tuning -> re-injection -> report, resumable."""
+"""Run the end-to-end job on a vehicle's twin: experiments -> identification -> bootstrap -> tuning ->
+re-injection -> report.
+
+Writes OUT/report/report.md and report.html (tables and figures), summary.json (every number), the models,
+the gain sets and rerun recordings of the validation runs (open them with rotorlab view OUT). Every stage is
+written atomically and skipped when its inputs are unchanged, so an interrupted run resumes where it stopped.
+"""
 
 from __future__ import annotations
 
@@ -8,19 +13,22 @@ from pathlib import Path
 
 
 def add_parser(sub):
-    p = sub.add_parser("pipeline", help="run the end-to-end identification + tuning pipeline on a twin (resumable)")
-    p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name (see `rotorlab list`)")
+    from rotorlab.cli import describe
+
+    p = sub.add_parser("pipeline", help="run the end-to-end identification + tuning pipeline on a twin (resumable)",
+                       **describe(__doc__))
+    p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name (see rotorlab list)")
     p.add_argument("--out", default=None, help="run folder (default runs/pipeline-VEHICLE[-quick]-seedN); "
                                                "re-running into it resumes, skipping unchanged stages")
     p.add_argument("--quick", action="store_true", help="half-length campaign, published best settings plus one alternative per grid, 50 bootstrap "
                                                   "replications, 100 Monte Carlo samples, one tuning start, 24 s hover")
     p.add_argument("--tiny", action="store_true", help=argparse.SUPPRESS)  # tests: seconds per stage
-    p.add_argument("--executor", default="local", help="local (process pool, default), serial, dask (local "
+    p.add_argument("--executor", default="local", help="local (process pool), serial, dask (local "
                                                         "cluster) or dask://HOST:PORT (existing scheduler)")
     p.add_argument("--workers", type=int, default=None, help="worker processes (default: all cores)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="master seed of every experiment, bootstrap and Monte Carlo")
     p.add_argument("--n-boot", type=int, default=None, help="bootstrap replications (default 1000, quick 50)")
-    p.add_argument("--n-mc", type=int, default=None, help="Monte Carlo samples per gain set (default 1000)")
+    p.add_argument("--n-mc", type=int, default=None, help="Monte Carlo samples per gain set (default 1000, quick 100)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 

@@ -1,5 +1,10 @@
-"""``rotorlab tune --model model.json --spec SPEC [--start GAINS] --out gains.toml``: tune the attitude
-cascade to a specification and print every goal's value, bound and pass/fail."""
+"""Tune the attitude cascade (outer PD on the angle, inner PID on the rate) to a specification by structured
+H-inf optimisation, and write the gains TOML that rotorlab run --gains reads.
+
+Prints the tuned gains and every goal of the spec with its value (<= 1 passes), hard or soft, pass or fail.
+Exit status 1 when a hard goal fails. The spec is a TOML file or a shipped name (anteos-p2a2,
+anteos-a2minib); the models are JSON files from rotorlab ident, or hand-written {num, den, dt, delay_s}.
+"""
 
 from __future__ import annotations
 
@@ -7,19 +12,20 @@ from pathlib import Path
 
 
 def add_parser(sub):
-    p = sub.add_parser("tune", help="structured H-inf tuning of the attitude cascade",
-                       description=__doc__.splitlines()[0])
+    from rotorlab.cli import describe
+
+    p = sub.add_parser("tune", help="structured H-inf tuning of the attitude cascade", **describe(__doc__))
     p.add_argument("--model", required=True, action="append",
                    help="model JSON (as written by 'rotorlab ident', or {num, den, dt, delay_s}); repeat the "
                         "option to tune on several models at once")
     p.add_argument("--spec", required=True, help="spec TOML file or built-in name (anteos-p2a2, anteos-a2minib)")
     p.add_argument("--start", default="standard",
-                   help="start gains: a gains TOML file or a gain-set name of the spec's vehicle (default standard)")
+                   help="start gains: a gains TOML file or a gain-set name of the spec's vehicle")
     p.add_argument("--out", required=True, help="gains TOML to write")
-    p.add_argument("--starts", type=int, default=1, help="number of starts (default 1: the start gains only)")
+    p.add_argument("--starts", type=int, default=1, help="number of starts (1: the start gains only)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random starts")
     p.add_argument("--jobs", type=int, default=1, help="processes for the starts")
-    p.add_argument("--max-iter", type=int, default=40, help="outer iterations per start (default 40)")
+    p.add_argument("--max-iter", type=int, default=40, help="outer iterations per start")
     return p
 
 

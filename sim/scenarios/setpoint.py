@@ -79,4 +79,7 @@ def metrics(log, ctx: Context, setup: Setup) -> dict:
                          control=_metrics.control(log, cmd, lim, t, min(t_end, t + 2.0)))
                 steps.append(m)
         prev = lvl
-    return _metrics.clean({"axis": axis, "steps": steps, "control": _metrics.control(log, cmd, lim)})
+    # the signed errors of steps of both signs cancel in a mean: the summary is the largest magnitude
+    sse = [abs(m["steady_state_error"]) for m in steps if np.isfinite(m["steady_state_error"])]
+    return _metrics.clean({"axis": axis, "steps": steps, "steady_state_error_max_abs_deg": max(sse) if sse else None,
+                           "control": _metrics.control(log, cmd, lim)})

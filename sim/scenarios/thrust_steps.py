@@ -5,7 +5,11 @@ The command alternates between ``low_pct`` and ``high_pct`` every ``hold_s``; th
 squares (time constant and delay); with 20 ms samples a lag much shorter than 20 ms (the P2-A2's 5 ms servo)
 is not resolved, which the fit reports as a time constant near zero.
 
-Options: ``low_pct`` (default 50), ``high_pct`` (default 70), ``hold_s`` (default 0.5).
+Options
+-------
+``low_pct`` : float    low command level, %
+``high_pct`` : float   high command level, %
+``hold_s`` : float     time at each level, s
 """
 
 import numpy as np

@@ -6,7 +6,10 @@ The rotor command steps through ``levels_pct`` (absolute %: blade pitch in units
 and the static fits a test engineer makes from them: K_T in T = K_T Omega^2 (variable RPM) or the thrust slope
 dT/d(blade pitch) (variable pitch).
 
-Options: ``levels_pct`` (list, default 20..100 % in steps of 10), ``hold_s`` (default 1.0).
+Options
+-------
+``levels_pct`` : list of float   rotor command levels, % (default 20..100 in steps of 10)
+``hold_s`` : float               time at each level, s
 """
 
 import numpy as np
