@@ -38,7 +38,7 @@ def test_csv_with_column_map(tmp_path):
     log = load_log(f, column_map={"t": "time", "q": "pitch_rate"}, units={"q": "deg/s"})
     assert log.columns == ["u_lon", "q"] and log.units["q"] == "deg/s"
     np.testing.assert_allclose(log["q"], tab["q"])
-    with pytest.raises(DataError, match="column_map names column"):
+    with pytest.raises(DataError, match="column map names column"):
         load_log(f, column_map={"t": "nope"})
 
 
