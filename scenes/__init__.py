@@ -43,6 +43,14 @@ class Scene:
     thrust_actuators: np.ndarray  # actuator ids, rotor order
     aero_actuators: dict  # "inflow" / "hx" / "hy" -> actuator ids, rotor order
     has_anchor: bool = False
+    #: rotor-inertia reaction actuators (variable RPM with rotor inertia), rotor order; they take the same
+    #: ctrl as the thrust actuators (vehicles.build.add_rotor)
+    spinup_actuators: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, dtype=int))
+
+    @property
+    def rotor_ctrl_ids(self) -> np.ndarray:
+        """Actuator ids that take the per-rotor ctrl: the thrust actuators, then the spin-up ones."""
+        return np.concatenate([self.thrust_actuators, self.spinup_actuators]).astype(int)
 
     @property
     def physics_dt_s(self) -> float:
@@ -163,7 +171,9 @@ def build_scene(scene: str, vehicle, physics_dt_s: float = PHYSICS_DT_S, edit=No
     thrust = np.array([model.actuator(f"{PREFIX}thrust{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}thrust{i}")])
     aero = {k: np.array([model.actuator(f"{PREFIX}{k}{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}{k}{i}")])
             for k in ("inflow", "hx", "hy")}
-    return Scene(scene, v, model, s, rig_axis, stop, thrust, aero, has_anchor)
+    spinup = np.array([model.actuator(f"{PREFIX}spinup{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}spinup{i}")],
+                      dtype=int)
+    return Scene(scene, v, model, s, rig_axis, stop, thrust, aero, has_anchor, spinup)
 
 
 def _has(model, name) -> bool:
@@ -184,6 +194,8 @@ def _hover_keyframe(s: mujoco.MjSpec, v: VehicleSpec, scene: str):
         if name.startswith(f"{PREFIX}thrust"):
             ctrl[i] = v.hover_ctrl()
             act[m.actuator_actadr[i]] = v.hover_ctrl()
+        elif name.startswith(f"{PREFIX}spinup"):
+            ctrl[i] = v.hover_ctrl()
     key.ctrl = ctrl.tolist()
     key.act = act.tolist()
     key.time = 0.0

@@ -285,6 +285,7 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     imu = sim.imu
     col = {c: k for k, c in enumerate(imu.channels)}
     thrust = np.asarray(sim.scene.thrust_actuators)
+    spinup = np.asarray(sim.scene.spinup_actuators)
     aero = {k: np.asarray(a) for k, a in sim.scene.aero_actuators.items()}
     qadr = [int(m.jnt_qposadr[m.joint(j).id]) for j in ("rig_bearing", "rig_mount")]
     stop_deg = float(sim.scene.stop_deg)
@@ -373,6 +374,8 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
             rotor[:, j] = u_col * a + u_lat * b_ + u_lon * c + u_yaw * e
         np.clip(rotor, mx.out_min, mx.out_max, out=rotor)
         ctrl[:, thrust] = v.command_to_ctrl(rotor[:, : len(thrust)])
+        if spinup.size:
+            ctrl[:, spinup] = ctrl[:, thrust]
         # ---- ground truth and log
         att_true = euler_deg_from_quats(xquat[:, airframe])
         R = xmat[:, airframe].reshape(n, 3, 3)

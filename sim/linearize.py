@@ -107,6 +107,10 @@ def linearize(scene="pitch-rig", vehicle="anteos-p2a2", input="pitch", output="g
     Cy = C[rows] * np.asarray(scales)[:, None]
     Bt = B[:, thrust]
     Dt = D[rows][:, thrust] * np.asarray(scales)[:, None]
+    if len(sc.spinup_actuators):
+        # the rotor-inertia reaction actuators take each rotor's ctrl through the same delay line
+        Bt = Bt + B[:, sc.spinup_actuators]
+        Dt = Dt + D[rows][:, sc.spinup_actuators] * np.asarray(scales)[:, None]
 
     if not delay:
         return _named(ct.ss(A, Bt @ Wrot, Cy, Dt @ Wrot, dt), inputs, outputs)

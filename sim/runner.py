@@ -12,8 +12,9 @@ from rotorlab.gains import GainSet, load_gains
 from rotorlab.sim import scenarios
 from rotorlab.sim.control.flight_software import FlightSoftware
 from rotorlab.sim.control.position import PositionGains
+from rotorlab.sim.control.statespace import StateSpaceController, as_controller_spec
 from rotorlab.sim.log import RunLog, write_run
-from rotorlab.sim.simulator import CONTROL_DT_S, Simulator, vehicle_mixer
+from rotorlab.sim.simulator import Simulator, vehicle_mixer
 from rotorlab.vehicles import DEFAULT_VEHICLE, gains_path, list_gains, load_vehicle
 
 # Standard log columns (flight-software units); the pitch channel is named as the papers name it.
@@ -61,19 +62,48 @@ def resolve_gains(vehicle, gains) -> GainSet | None:
         raise UnknownNameError(f"gain set of {vehicle.name}", str(gains), list_gains(vehicle.name)) from None
 
 
-def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: float = CONTROL_DT_S) -> FlightSoftware:
+def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: float | None = None,
+                         controller=None) -> FlightSoftware:
+    """The flight software of a run at ``dt`` (default: the vehicle's rate), with the discrete controllers
+    ``controller`` (:func:`controller_plugins`) in place of the cascade on the commands they set."""
+    dt = vehicle.control_dt_s if dt is None else dt
     pos = PositionGains.for_vehicle(vehicle.mass_kg, vehicle.hover_collective_pct, vehicle.thrust_exponent)
-    return FlightSoftware(
+    fs = FlightSoftware(
         gains, vehicle_mixer(vehicle), dt=dt, mode=setup.mode, limits=setup.limits(vehicle), position_gains=pos,
         open_loop_axes=setup.open_loop_axes, schedule=setup.schedule or None, reference=setup.reference,
         excitation=setup.excitation or None,
     )
+    if controller is not None:
+        fs.plugins.extend(controller_plugins(controller, fs))
+    return fs
+
+
+def controller_plugins(controller, fs: FlightSoftware) -> list:
+    """Plug-ins for ``controller``: a :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a controller
+    file, or a list of them (e.g. one per axis). Each sees the flight software's saturation of the commands it
+    sets, so an anti-windup compensator acts on exactly the part the flight software cuts off."""
+    specs = controller if isinstance(controller, (list, tuple)) else [controller]
+    limits = {"u_lat": fs.u_limit_pct, "u_lon": fs.u_limit_pct, "u_yaw": fs.yaw_u_limit_pct}
+    seen, out = set(), []
+    for obj in specs:
+        spec = as_controller_spec(obj)
+        clash = seen & set(spec.outputs)
+        if clash:
+            raise ConfigError("two controllers set the same command", field="controller",
+                              expected="each command set by at most one controller", got=sorted(clash))
+        seen |= set(spec.outputs)
+        out.append(StateSpaceController(spec, fs.dt, [limits.get(o, float("inf")) for o in spec.outputs]))
+    return out
 
 
 def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None, gains=None, seed: int = 0,
                  duration_s: float | None = None, out=None, options: dict | None = None, progress: bool = False,
-                 sensor_noise: bool | None = None, record_poses: bool = False) -> RunResult:
+                 sensor_noise: bool | None = None, record_poses: bool = False, controller=None) -> RunResult:
     """Run scenario ``name`` headless; write ``log.parquet`` and ``run.json`` into ``out`` when given.
+
+    ``controller``: discrete controllers flown in place of the cascade on the commands they set (a
+    :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a ``.json``/``.toml`` controller file, or a list of
+    them); the flight software runs at the vehicle's rate (``VehicleSpec.control_dt_s``).
 
     A run that diverges (NaN, MuJoCo warning, rig stop, crash) stops early, keeps the log written so far and
     records the reason in ``run.json`` under ``stopped``. ``record_poses`` keeps the body poses, rotor thrusts,
@@ -90,11 +120,12 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     if not duration_s > 0:
         raise ConfigError(field="duration", expected="a duration > 0 s", got=duration_s)
     gs = resolve_gains(v, gains)
-    ctx = scenarios.Context(vehicle=v, scene=scene, gains=gs, seed=seed, duration_s=duration_s, options=dict(options or {}))
+    ctx = scenarios.Context(vehicle=v, scene=scene, gains=gs, seed=seed, duration_s=duration_s,
+                            options=dict(options or {}), dt_s=v.control_dt_s)
     setup = mod.setup(ctx)
     noise = setup.sensor_noise if sensor_noise is None else sensor_noise
     sim = Simulator(scene, v, seed=seed, sensor_noise=noise, disturbances=setup.disturbances)
-    fs = make_flight_software(v, gs, setup)
+    fs = make_flight_software(v, gs, setup, sim.control_dt_s, controller)
     n_ticks = int(round(duration_s / sim.control_dt_s))
     columns = {} if setup.drive is not None else dict(BASE_COLUMNS)
     if scene == "free-flight":
@@ -117,6 +148,10 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
         "physics_dt_s": float(sim.model.opt.timestep), "sensor_noise": noise, "stopped": stopped,
         "options": ctx.options, "notes": setup.notes,
     }
+    ctl = [pl.spec for pl in fs.plugins if isinstance(pl, StateSpaceController)]
+    if ctl:
+        info["controller"] = [{"name": c.name, "dt_s": c.dt_s, "inputs": list(c.inputs), "outputs": list(c.outputs),
+                               "states": c.nstates, "antiwindup": c.antiwindup is not None} for c in ctl]
     metrics_fn = getattr(mod, "metrics", None)
     info["metrics"] = metrics_fn(log, ctx, setup) if metrics_fn else {}
     out_dir = write_run(out, log, info) if out is not None else None
@@ -171,4 +206,4 @@ def _gain_dict(gs: GainSet | None) -> dict | None:
     return {ax: {"outer": g.outer.as_dict(), "inner": g.inner.as_dict()} for ax, g in gs.axes.items()}
 
 
-__all__ = ["RunResult", "run_scenario", "resolve_gains", "make_flight_software", "BASE_COLUMNS"]
+__all__ = ["RunResult", "run_scenario", "resolve_gains", "make_flight_software", "controller_plugins", "BASE_COLUMNS"]

@@ -19,7 +19,7 @@ from rotorlab.sim.disturbances.mean_wind import WindDisturbance
 from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG, euler_deg_from_quat
 from rotorlab.sim.sensors import SENSORS, imu_suite
 
-CONTROL_DT_S = 0.02
+CONTROL_DT_S = 0.02  # the published ANTEOS cycle; a vehicle's own rate is VehicleSpec.control_dt_s
 FREE_FLIGHT_TILT_LIMIT_DEG = 80.0
 FLOOR_CLEARANCE_M = 0.05
 
@@ -85,8 +85,9 @@ class Simulator:
     vehicle : str, path or VehicleSpec
     seed : int
         Seeds the IMU noise and bias and every disturbance (``numpy.random.Generator``).
-    control_dt_s : float
-        Flight-software period; must be a whole number of physics steps.
+    control_dt_s : float, optional
+        Flight-software period, s; must be a whole number of physics steps. Default: the vehicle's
+        (``[flight_software] rate_hz`` in its vehicle.toml; 50 Hz unless it says otherwise).
     sensor_noise : bool
         IMU noise and bias on or off.
     disturbances : sequence
@@ -96,7 +97,7 @@ class Simulator:
     #: Python-side state a snapshot must keep besides MuJoCo's full physics state (see the gym envs)
     python_state_attrs = ("rng", "_noise_bias", "commands_pct", "wind_world", "seed")
 
-    def __init__(self, scene="pitch-rig", vehicle="anteos-p2a2", *, seed: int = 0, control_dt_s: float = CONTROL_DT_S,
+    def __init__(self, scene="pitch-rig", vehicle="anteos-p2a2", *, seed: int = 0, control_dt_s: float | None = None,
                  sensor_noise: bool = True, disturbances=()):
         self.disturbances = list(disturbances)
         self.wind_disturbances = [d for d in self.disturbances if isinstance(d, WindDisturbance)]
@@ -114,6 +115,8 @@ class Simulator:
         self.vehicle = self.scene.vehicle
         self.model = self.scene.model
         self.data = mujoco.MjData(self.model)
+        if control_dt_s is None:
+            control_dt_s = self.vehicle.control_dt_s
         n = control_dt_s / self.model.opt.timestep
         if abs(n - round(n)) > 1e-9 or round(n) < 1:
             raise ValueError(f"control period {control_dt_s} s is not a whole number of physics steps "
@@ -124,6 +127,7 @@ class Simulator:
         self.seed = seed
         m = self.model
         self._thrust = self.scene.thrust_actuators
+        self._spinup = self.scene.spinup_actuators  # same ctrl as the thrust actuators (rotor-inertia reaction)
         self._inflow, self._hx, self._hy = (self.scene.aero_actuators[k] for k in ("inflow", "hx", "hy"))
         self.mixer = vehicle_mixer(self.vehicle)
         self._limit = self.vehicle.command_limit_pct
@@ -197,7 +201,10 @@ class Simulator:
     def set_rotor_commands(self, rotor_pct) -> None:
         """Per-rotor commands in %, e.g. from the flight software's mixer or a thrust-stand test."""
         rotor = np.asarray(rotor_pct, dtype=float)[: len(self._thrust)]
-        self._ctrl_v[self._thrust] = self.vehicle.command_to_ctrl(rotor)
+        ctrl = self.vehicle.command_to_ctrl(rotor)
+        self._ctrl_v[self._thrust] = ctrl
+        if self._spinup.size:
+            self._ctrl_v[self._spinup] = ctrl
 
     def _apply_wind(self) -> None:
         w = self.wind_world

@@ -110,7 +110,7 @@ def test_thrust_stand_reproduces_tuhh_thrust_curve(b):
     v = load_vehicle("tuhh-quad")
     sim = Simulator("thrust-stand", "tuhh-quad", sensor_noise=False)
     sim.set_rotor_commands([100 * b])
-    for _ in range(50):  # 1 s: many motor time constants
+    for _ in range(int(round(1.0 / sim.control_dt_s))):  # 1 s: many motor time constants
         sim.tick()
     thrust, torque = sim.load_cell()
     omega = float(v.rotor.speed(b))

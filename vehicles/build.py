@@ -27,6 +27,22 @@ from .spec import VehicleSpec
 ROTOR_ACTUATORS = ("thrust", "inflow", "hx", "hy")
 
 
+def spinup_torque_per_N(v: VehicleSpec, i: int) -> float:
+    """Yaw reaction of rotor ``i`` (1-based) per newton of thrust *not yet reached*, m (0 without rotor inertia).
+
+    A variable-RPM rotor that speeds up takes the motor torque ``J_R dOmega/dt`` from the airframe (ref. 002
+    eq. 1, the ``J_R dOmega_R`` term of the yaw equation). The thrust actuator's state is ``Omega^2`` behind a
+    first-order lag ``tau``: ``T = k Omega^2``, ``dT/dt = (T_cmd - T) / tau`` with ``T_cmd`` the delayed,
+    commanded thrust, so ``J_R dOmega/dt = J_R (T_cmd - T) / (2 k Omega tau)``; with ``Omega`` at its hover
+    value this is ``c (T_cmd - T)``, exact for the small-signal yaw model the identification fits.
+    """
+    r = v.rotor
+    if v.kind != "variable-rpm" or r.inertia_kgm2 == 0.0:
+        return 0.0
+    omega_h = float(r.speed(r.hover_command))
+    return r.inertia_kgm2 / (2.0 * r.k_thrust * omega_h * r.lag_s[i - 1])
+
+
 def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
     """Return the vehicle as an ``MjSpec`` whose root body is ``airframe`` (to be attached by a scene)."""
     s = mujoco.MjSpec()
@@ -114,13 +130,22 @@ def _aero_default(s: mujoco.MjSpec):
 
 
 def add_rotor(s: mujoco.MjSpec, v: VehicleSpec, i: int, physics_dt_s: float, prefix: str = "") -> None:
-    """Add the four actuators of rotor ``i`` (1-based) at site ``{prefix}rotor{i}``: thrust, inflow, hx, hy."""
+    """Add the actuators of rotor ``i`` (1-based) at site ``{prefix}rotor{i}``: thrust, inflow, hx, hy, and for a
+    variable-RPM rotor with inertia the spin-up reaction ``spinup{i}`` (:func:`spinup_torque_per_N`).
+
+    The spin-up actuator takes the same ctrl as the thrust actuator through the same delay line but without
+    the lag: its force is the commanded thrust ``T_cmd``; with yaw gear ``+c`` on it and ``-c`` added to the
+    thrust actuator's, the airframe gets ``c (T_cmd - T)`` (zero in steady state), all in MuJoCo's actuator
+    pipeline (history buffer, exact filter) with no Python in the physics loop.
+    """
     r = v.rotor
     aero = _aero_default(s)
     sp = r.spin[i - 1]
+    c_spin = spinup_torque_per_N(v, i)
     gear_axial = [0, 0, 1, 0, 0, sp * r.torque_to_thrust_m]
+    gear_thrust = [0, 0, 1, 0, 0, sp * (r.torque_to_thrust_m - c_spin)]
     a = s.add_actuator(name=f"{prefix}thrust{i}", target=f"{prefix}rotor{i}", trntype=mujoco.mjtTrn.mjTRN_SITE)
-    a.gear = gear_axial
+    a.gear = gear_thrust
     a.dyntype = mujoco.mjtDyn.mjDYN_FILTEREXACT
     a.dynprm[0] = r.lag_s[i - 1]
     a.gaintype = mujoco.mjtGain.mjGAIN_FIXED
@@ -134,6 +159,14 @@ def add_rotor(s: mujoco.MjSpec, v: VehicleSpec, i: int, physics_dt_s: float, pre
         # time - delay, and the accumulated float time would otherwise sometimes land just before the
         # wanted sample and add a whole extra physics step of delay (61 instead of 60 steps at t = 1 s)
         a.delay = (nsample - 0.25) * physics_dt_s
+    if c_spin:
+        b = s.add_actuator(name=f"{prefix}spinup{i}", target=f"{prefix}rotor{i}", trntype=mujoco.mjtTrn.mjTRN_SITE)
+        b.gear = [0, 0, 0, 0, 0, sp * c_spin]
+        b.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        b.gainprm[0] = v.thrust_gain()
+        b.biastype = mujoco.mjtBias.mjBIAS_NONE
+        b.ctrllimited = False
+        b.nsample, b.delay = a.nsample, a.delay
     kw = r.axial_damping_N_per_mps
     a = s.add_actuator(name=f"{prefix}inflow{i}", target=f"{prefix}rotor{i}", default=aero)
     a.gear = gear_axial

@@ -108,6 +108,7 @@ class RotorSpec:
     torque_coefficient: float = 0.0
     speed_map: tuple = (0.0, 1.0, 0.0)
     hover_command: float = 0.0
+    inertia_kgm2: float = 0.0  # rotor + motor bell about the spin axis (variable RPM: the J_R dOmega/dt yaw reaction)
 
     @property
     def area_m2(self) -> float:
@@ -212,6 +213,12 @@ class VehicleSpec:
     #: identification campaign: the band (rad/s) the PRBS is designed to excite (``[campaign]``); None: the
     #: vehicle has no open-loop PRBS campaign band of its own (rotorlab.excitation.ANTEOS_CAMPAIGN's is used)
     campaign_band_rad_s: tuple | None = None
+    control_rate_hz: float = 50.0  # flight-software tick rate ([flight_software] rate_hz)
+
+    @property
+    def control_dt_s(self) -> float:
+        """Flight-software period, s."""
+        return 1.0 / self.control_rate_hz
 
     @property
     def command_limit_pct(self) -> float:
@@ -335,7 +342,8 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         rotor = RotorSpec(**common, thrust_coefficient=r.num("thrust_coefficient", lo=0.0, lo_open=True),
                           torque_coefficient=r.num("torque_coefficient", lo=0.0, lo_open=True),
                           speed_map=r.vec("speed_map", 3),
-                          hover_command=r.num("hover_command", lo=0.0, lo_open=True, hi=1.0))
+                          hover_command=r.num("hover_command", lo=0.0, lo_open=True, hi=1.0),
+                          inertia_kgm2=r.num("inertia_kgm2", 0.0, lo=0.0))
     if physics_dt_s:
         for d in rotor.delay_s:
             k = d / physics_dt_s
@@ -366,6 +374,15 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
                 mount_damping_Nms_per_rad=t.num("mount_damping_Nms_per_rad", lo=0.0),
                 stop_deg=t.num("stop_deg", lo=0.0, lo_open=True, hi=90.0),
             )
+    fsw = rd.table("flight_software", required=False)
+    rate_hz = fsw.num("rate_hz", 50.0, lo=0.0, lo_open=True) if fsw is not None else 50.0
+    if physics_dt_s:
+        k = 1.0 / (rate_hz * physics_dt_s)
+        if abs(k - round(k)) > 1e-6:
+            raise ConfigError("the simulator steps whole physics steps per flight-software tick", file=src,
+                              field="flight_software.rate_hz",
+                              expected=f"a rate whose period is a multiple of the physics step {physics_dt_s} s",
+                              got=rate_hz)
     srcs = rd.data.get("sources", {})
     return VehicleSpec(
         name=v.str("name"), description=v.str("description", ""), kind=kind, path=Path(src),
@@ -375,7 +392,7 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         rotor=rotor, imu=imu, rigs=rigs,
         commands=_commands(rd.table("commands")),
         published=_published(src, rd.table("published", required=False)),
-        sources=dict(srcs) if isinstance(srcs, dict) else {},
+        sources=dict(srcs) if isinstance(srcs, dict) else {}, control_rate_hz=rate_hz,
         campaign_band_rad_s=_campaign_band(src, rd.table("campaign", required=False)),
     )
 

@@ -19,6 +19,7 @@ SCENARIOS = {
     "rest": "rest",
     "setpoint": "setpoint",
     "gust": "gust",
+    "input-disturbance": "input_disturbance",
     "rope-pull": "rope_pull",
     "hover": "hover",
     "prbs": "prbs",
@@ -39,6 +40,7 @@ class Context:
     seed: int
     duration_s: float
     options: dict
+    dt_s: float = 0.02  # flight-software period of the vehicle (VehicleSpec.control_dt_s): one sample per tick
 
 
 @dataclasses.dataclass

@@ -47,7 +47,7 @@ def excitation(ctx: Context, defaults: dict = DEFAULTS) -> tuple[np.ndarray, lis
             raise ConfigError(field="options.holds", expected=f"indices 0..{len(table) - 1} into {table}", got=h)
     seg = float(o["segment_s"] or ctx.duration_s / len(holds))
     segments = [(table[h], a, seg) for h, a in zip(holds, amps)]
-    u, _ = campaign(segments, dt=ANTEOS_CAMPAIGN["dt_s"], seed=np.random.default_rng([ctx.seed, 0x70727273]))
+    u, _ = campaign(segments, dt=ctx.dt_s, seed=np.random.default_rng([ctx.seed, 0x70727273]))
     return u, [[list(s[0]), s[1], s[2]] for s in segments]
 
 

@@ -31,7 +31,7 @@ def signal(ctx: Context, defaults: dict, target_names: dict, default_amp: dict):
     if o["target"] not in target_names:
         raise ConfigError(field="options.target", expected=f"one of {sorted(target_names)}", got=o["target"])
     amp = float(o["amplitude"] if o["amplitude"] is not None else default_amp[o["target"]])
-    u = prbs(duration_s=ctx.duration_s, dt=0.02, hold_range_s=tuple(o["hold_range_s"]), amplitude=amp,
+    u = prbs(duration_s=ctx.duration_s, dt=ctx.dt_s, hold_range_s=tuple(o["hold_range_s"]), amplitude=amp,
              rng=np.random.default_rng([ctx.seed, SEED_TAG]))
     return o["target"], amp, u
 

@@ -1,0 +1,73 @@
+"""Input-disturbance step on a rig: a constant moment equal to a fraction of the axis command's authority.
+
+Ref. 002 (figs. 6 and 8) injects "an input disturbance equivalent to 10 % (30 %) of maximum engine thrust".
+We read it, as ``rotorlab.tune.loopshaping`` does, as ``d = fraction`` of the full differential motor command
+at the plant input, i.e. the moment a ``100 * fraction`` % axis command would produce at hover (the twin's
+linear torque gain: ``arm * dT/d% `` per % with each rotor of the pair taking half the command). It acts as a
+moment on the airframe about the rig axis (a weight hung on the arm), written into ``xfrc_applied`` every
+tick, so it bypasses the motor lag and delay: the controller's saturation at the command limit (40 % on
+the TUHH twin) still leaves ``40 - 100 * fraction`` % of authority against it, as in the paper's experiment.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rotorlab.errors import ConfigError
+from rotorlab.scenes import RIG_AXES
+from rotorlab.sim.disturbances.base import Disturbance
+
+
+def axis_torque_per_pct(vehicle) -> float:
+    """Roll/pitch moment per % of axis command at hover, N m (each rotor of the opposite pair gets half)."""
+    return vehicle.arm_m * vehicle.thrust_gain() * vehicle.dctrl_dcommand()
+
+
+class InputDisturbanceStep(Disturbance):
+    """Step moment of ``fraction`` of full command from ``t_s`` on (for ``hold_s``, default to the end).
+
+    Parameters
+    ----------
+    fraction : float
+        Disturbance as a fraction of the full differential command (0.1 = 10 %); the sign sets the direction
+        (positive raises the rig angle, like a positive command).
+    t_s : float
+        Onset, s.
+    hold_s : float, optional
+        Duration, s (default: until the end of the run).
+    """
+
+    name = "input-step"
+    scenes = tuple(RIG_AXES)
+    columns = {"d_input": "%", "d_moment": "N m"}
+
+    def __init__(self, fraction: float, t_s: float = 1.0, hold_s: float | None = None):
+        if not (np.isfinite(fraction) and abs(fraction) <= 1.0):
+            raise ConfigError(field="fraction", expected="a fraction of the full command in [-1, 1]", got=fraction)
+        if not t_s >= 0:
+            raise ConfigError(field="t_s", expected="an onset time >= 0 s", got=t_s)
+        if hold_s is not None and not hold_s > 0:
+            raise ConfigError(field="hold_s", expected="a duration > 0 s (or None: to the end)", got=hold_s)
+        self.fraction, self.t_s = float(fraction), float(t_s)
+        self.t_end_s = np.inf if hold_s is None else self.t_s + float(hold_s)
+
+    def reset(self, sim, rng) -> None:
+        self._axis = np.asarray(RIG_AXES[sim.scene.name][1], dtype=float)
+        self._body = sim._airframe
+        self._moment_per_pct = axis_torque_per_pct(sim.vehicle)
+
+    def input_pct(self, t: float) -> float:
+        # half a tick of tolerance: the tick times are sums of float periods
+        return 100.0 * self.fraction if self.t_s - 1e-9 <= t < self.t_end_s - 1e-9 else 0.0
+
+    def update(self, sim, t: float) -> None:
+        d = self.input_pct(t)
+        if d:
+            sim.data.xfrc_applied[self._body, 3:6] += d * self._moment_per_pct * self._axis
+
+    def values(self, sim) -> dict:
+        d = self.input_pct(sim.time)
+        return {"d_input": d, "d_moment": d * self._moment_per_pct}
+
+
+__all__ = ["InputDisturbanceStep", "axis_torque_per_pct"]
