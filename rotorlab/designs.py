@@ -15,6 +15,7 @@ design's own poles reach 87 rad/s; at 250 Hz Tustin's frequency warping there is
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -116,7 +117,13 @@ def design(name: str, vehicle="tuhh-quad", axes=("roll", "pitch"), dt_s: float |
         if ax not in AXIS_SIGNALS:
             raise UnknownNameError("axis", ax, AXIS_SIGNALS)
     dt = v.control_dt_s if dt_s is None else float(dt_s)
-    return [DESIGNS[name](ax, dt) for ax in axes]
+    return [_build(name, ax, dt) for ax in axes]
+
+
+@functools.lru_cache(maxsize=32)
+def _build(name: str, axis: str, dt: float):
+    # an H-inf synthesis takes about a second; the specs are immutable, so one per (design, axis, rate)
+    return DESIGNS[name](axis, dt)
 
 
 def resolve_controller(value, vehicle):

@@ -24,6 +24,10 @@ def add_parser(sub):
     p.add_argument("--scene", default=None, help="scene (default: the scenario's first scene)")
     p.add_argument("--gains", default=None, help="gain set name shipped with the vehicle, or a gains TOML file "
                                                  "(default: the vehicle's standard set)")
+    p.add_argument("--controller", action="append", default=[], metavar="NAME|FILE",
+                   help="fly a discrete controller in place of the cascade (repeatable): a design name "
+                        "(modified-pid, hinf-loopshaping, hinf-loopshaping-aw; TUHH) or a .json/.toml "
+                        "state-space controller file (see rotorlab.sim.control.statespace)")
     p.add_argument("--duration", type=float, default=None, help="duration, s (default: the scenario's)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and the disturbances")
     p.add_argument("--out", default=None, help="run folder (default runs/SCENARIO-VEHICLE-seedN)")
@@ -111,9 +115,17 @@ def run(args) -> int:
         except RotorlabError as exc:
             raise CLIError(str(exc)) from None
     try:
+        controller = None
+        if args.controller:
+            from rotorlab.designs import resolve_controller
+
+            controller = []
+            for c in args.controller:
+                r = resolve_controller(c, args.vehicle)
+                controller.extend(r if isinstance(r, list) else [r])
         res = run_scenario(args.scenario, args.vehicle, scene=args.scene, gains=args.gains, seed=args.seed,
                            duration_s=args.duration, out=out, options=parse_options(args.option),
-                           progress=not args.json, record_poses=rrd is not None)
+                           progress=not args.json, record_poses=rrd is not None, controller=controller)
         if rrd is not None:
             from rotorlab.sim.rerun_log import record_run
 
