@@ -14,6 +14,7 @@ from rotorlab.sim.disturbances import DISTURBANCES, CosineGust, Disturbance, Dry
 from rotorlab.sim.disturbances.dryden import DrydenTurbulence
 from rotorlab.sim.disturbances.gust import one_minus_cosine
 from rotorlab.sim.disturbances.recirculation_moment import RecirculationMoment
+from rotorlab.sim.disturbances.input_disturbance_step import InputDisturbanceStep
 from rotorlab.sim.disturbances.rope_pull import RopePull
 from rotorlab.sim.disturbances.dryden_wind import turbulence_axes_ned
 from rotorlab.sim.runner import run_scenario
@@ -101,6 +102,7 @@ _EXAMPLES = {
     "dryden": (lambda: DrydenWind(3.0, HOVER_HEIGHT_M, 1.0), "free-flight"),
     "cosine-gust": (lambda: CosineGust(0.0, 0.5, 4.0), "pitch-rig"),
     "recirculation": (lambda: RecirculationMoment(0.3, 1.0), "pitch-rig"),
+    "input-step": (lambda: InputDisturbanceStep(0.1, t_s=0.0), "pitch-rig"),
     "rope": (lambda: RopePull(pull_deg=-20.0, t_pull_s=0.0, ramp_s=0.2, length_m=1.0, slack_m=0.05), "pitch-rig"),
 }
 

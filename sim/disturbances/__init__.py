@@ -12,14 +12,16 @@ from rotorlab.sim.disturbances.dryden import (DrydenTurbulence, dryden_psd_u, dr
                                                low_altitude_scales)
 from rotorlab.sim.disturbances.dryden_wind import DrydenWind
 from rotorlab.sim.disturbances.gust import one_minus_cosine
+from rotorlab.sim.disturbances.input_disturbance_step import InputDisturbanceStep
 from rotorlab.sim.disturbances.mean_wind import MeanWind, SampledWind, WindDisturbance
 from rotorlab.sim.disturbances.recirculation_moment import RecirculationMoment
 from rotorlab.sim.disturbances.recirculation_torque import RecirculationTorque
 from rotorlab.sim.disturbances.rope_pull import RopePull
 
 #: disturbance name -> class
-DISTURBANCES = {cls.name: cls for cls in (MeanWind, DrydenWind, CosineGust, RecirculationMoment, RopePull)}
+DISTURBANCES = {cls.name: cls for cls in (MeanWind, DrydenWind, CosineGust, RecirculationMoment, RopePull,
+                                             InputDisturbanceStep)}
 
 __all__ = ["DISTURBANCES", "Disturbance", "WindDisturbance", "SampledWind", "MeanWind", "DrydenWind", "CosineGust",
-           "RecirculationMoment", "RopePull", "DrydenTurbulence", "dryden_psd_u", "dryden_psd_v", "dryden_psd_w",
+           "RecirculationMoment", "RopePull", "InputDisturbanceStep", "DrydenTurbulence", "dryden_psd_u", "dryden_psd_v", "dryden_psd_w",
            "low_altitude_scales", "one_minus_cosine", "RecirculationTorque"]
