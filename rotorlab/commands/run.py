@@ -65,7 +65,9 @@ def summary_lines(res, rrd=None) -> list[str]:
     info, tm = res.info, res.timing
     sim_s = res.log.n * info["control_dt_s"]
     loop_s = tm.get("sim_s", float("nan"))
-    L = [f"{info['scenario']} on {info['vehicle']} ({info['scene']}), gains {info['gains'] or '-'}, seed {info['seed']}",
+    ctl = ", ".join(c["name"] for c in info.get("controller", []))
+    flown = f"controller {ctl} (cascade gains {info['gains'] or '-'} elsewhere)" if ctl else f"gains {info['gains'] or '-'}"
+    L = [f"{info['scenario']} on {info['vehicle']} ({info['scene']}), {flown}, seed {info['seed']}",
          f"simulated {sim_s:.1f} s in {loop_s:.2f} s of closed loop: {sim_s / loop_s:.1f}x real time "
          f"(model build {tm.get('build_s', 0.0):.2f} s and scoring/writing {tm.get('score_s', 0.0):.2f} s not counted)"]
     if res.stopped:
