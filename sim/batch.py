@@ -50,8 +50,6 @@ from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
 SCENES = ("pitch-rig", "roll-rig")
 #: keys of ``vary``: relative standard deviations of airframe mass and inertia, wind speed std (m/s)
 VARY_KEYS = ("mass", "inertia", "wind")
-#: ticks of IMU noise drawn per simulation at a time (bounds the memory of the pre-drawn noise)
-NOISE_CHUNK_TICKS = 256
 _NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
 
 
@@ -304,8 +302,7 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
 
     # IMU noise: per-simulation generators seeded as Simulator.reset seeds its own
     rngs = [np.random.default_rng(int(s)) for s in seeds]
-    bias = np.array([imu.draw_bias(g) if noise else np.zeros(imu.n_noisy) for g in rngs])
-    z_chunk, z_pos = None, NOISE_CHUNK_TICKS
+    stream = imu.noise(rngs, np.array([imu.draw_bias(g) if noise else np.zeros(imu.n_noisy) for g in rngs]))
 
     # wind: the scenario's (common) plus each simulation's steady wind
     wind_dists = list(setup.disturbances)
@@ -333,12 +330,7 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
         # ---- measure (Simulator.measure)
         meas = imu.read(sd)
         if noise and (noise_on is None or noise_on(t)):
-            if z_pos == NOISE_CHUNK_TICKS:
-                # the same stream as one draw per tick: the Generator fills arrays sample by sample
-                z_chunk = np.stack([g.standard_normal((NOISE_CHUNK_TICKS, imu.n_noisy)) for g in rngs], axis=1)
-                z_pos = 0
-            imu.add_noise(meas, bias, z_chunk[z_pos])
-            z_pos += 1
+            imu.add_noise(meas, stream.next())
         p, q, r, phi, theta, psi = (meas[:, col[c]] for c in ("p", "q", "r", "phi", "theta", "psi"))
         # ---- flight software (FlightSoftware.step, cascade / open-loop)
         refs = reference(t) if reference is not None else {}

@@ -164,7 +164,7 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
     from tqdm import tqdm
 
     dt = sim.control_dt_s
-    prev_rates = sim.true_rates_dps()
+    p_prev, q_prev, _ = sim.true_rates_dps().tolist()
     on_tick = setup.on_tick
     it = tqdm(range(n_ticks), desc="simulating", unit="tick", disable=not progress, leave=False)
     drive = setup.drive
@@ -180,12 +180,11 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
         meas = sim.measure()
         out = fs.step(t, meas)
         sim.set_rotor_commands(out["rotor_pct"])
-        att = sim.true_attitude_deg()
-        rates = sim.true_rates_dps()
-        out["phi_true"], out["theta_true"] = att[0], att[1]
-        out["p_true"], out["q_true"] = rates[0], rates[1]
-        out["p_dot"], out["q_dot"] = (rates[:2] - prev_rates[:2]) / dt
-        prev_rates = rates
+        out["phi_true"], out["theta_true"], _ = sim.true_attitude_deg().tolist()
+        p_true, q_true, _ = sim.true_rates_dps().tolist()
+        out["p_true"], out["q_true"] = p_true, q_true
+        out["p_dot"], out["q_dot"] = (p_true - p_prev) / dt, (q_true - q_prev) / dt
+        p_prev, q_prev = p_true, q_true
         if on_tick is not None:
             out.update(on_tick(sim, out))
         for dist in sim.disturbances:

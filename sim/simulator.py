@@ -95,7 +95,7 @@ class Simulator:
     """
 
     #: Python-side state a snapshot must keep besides MuJoCo's full physics state (see the gym envs)
-    python_state_attrs = ("rng", "_noise_bias", "commands_pct", "wind_world", "seed")
+    python_state_attrs = ("rng", "_noise", "commands_pct", "wind_world", "seed")
 
     def __init__(self, scene="pitch-rig", vehicle="anteos-p2a2", *, seed: int = 0, control_dt_s: float | None = None,
                  sensor_noise: bool = True, disturbances=()):
@@ -157,6 +157,7 @@ class Simulator:
         self._warnings = [(w, d.warning[w]) for w in DIVERGENCE_WARNINGS]
         self._gyro_scale = FLU_TO_FRD * RAD2DEG
         self._floor_z = FLOOR_CLEARANCE_M + self.vehicle.body_size_m[2]
+        self._cos_tilt_limit = math.cos(math.radians(FREE_FLIGHT_TILT_LIMIT_DEG))
         self.wind_world = np.zeros(3)
         self.reset(seed)
 
@@ -174,9 +175,10 @@ class Simulator:
                 vals = np.full((m.actuator_history[i, 0], 1), d.ctrl[i])
                 mujoco.mj_initCtrlHistory(m, d, i, None, vals)
         self.rng = np.random.default_rng(self.seed)
-        self._noise_bias = None
+        self._noise = None
         if self.imu is not None:
-            self._noise_bias = self.imu.draw_bias(self.rng) if self.sensor_noise else np.zeros(self.imu.n_noisy)
+            bias = self.imu.draw_bias(self.rng) if self.sensor_noise else np.zeros(self.imu.n_noisy)
+            self._noise = self.imu.noise(self.rng, bias)
         self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
         self.wind_world[:] = 0.0
         self._wind_v[:] = 0.0  # opt.wind lives in the model, which outlives a run
@@ -209,11 +211,11 @@ class Simulator:
     def _apply_wind(self) -> None:
         w = self.wind_world
         self._wind_v[:] = w
-        wb = body_wind(self._af_xmat, w) if self._airframe >= 0 else w
+        wbx, wby, wbz = (body_wind(self._af_xmat, w) if self._airframe >= 0 else w).tolist()
         ctrl = self._ctrl_v
-        ctrl[self._hx] = wb[0]
-        ctrl[self._hy] = wb[1]
-        ctrl[self._inflow] = wb[2]
+        ctrl[self._hx] = wbx
+        ctrl[self._hy] = wby
+        ctrl[self._inflow] = wbz
 
     # ------------------------------------------------------------------ stepping
     def tick(self) -> None:
@@ -241,9 +243,9 @@ class Simulator:
             if at_rig_stop(ang, self._stop_deg):
                 return rig_stop_reason(self.scene, ang, self.time)
         elif self._free:
-            # tilt from the body z axis: R[2, 2] = cos(tilt)
-            tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(self._af_xmat[8])))))
-            if tilt > FREE_FLIGHT_TILT_LIMIT_DEG:
+            # tilt from the body z axis: R[2, 2] = cos(tilt), compared as a cosine (no acos on the good path)
+            if self._af_xmat[8] < self._cos_tilt_limit:
+                tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(self._af_xmat[8])))))
                 return f"tilt {tilt:.0f} deg beyond the divergence limit {FREE_FLIGHT_TILT_LIMIT_DEG:g} deg at t = {self.time:.3f} s"
             if self._af_xpos[2] < self._floor_z:
                 return f"the vehicle hit the floor at t = {self.time:.3f} s"
@@ -259,13 +261,13 @@ class Simulator:
         vals = imu.read(self._sd_v)
         if self.sensor_noise:
             # one draw per tick for all noisy channels keeps the stream (and so the log) seed-determined
-            imu.add_noise(vals, self._noise_bias, self.rng.standard_normal(imu.n_noisy))
+            imu.add_noise(vals, self._noise.next())
         out = dict(zip(imu.channels, vals.tolist()))
         if self._free:
-            # the free joint's qpos/qvel are the airframe origin's world position and velocity
+            # the free joint's qpos/qvel are the airframe origin's world position and velocity (NED: y, z flip)
             x, y, z = self._qpos_v[0:3].tolist()
             vx, vy, vz = self._qvel_v[0:3].tolist()
-            out.update(x=x, y=-y, z=-z, vx=vx, vy=-vy, vz=-vz)
+            out["x"], out["y"], out["z"], out["vx"], out["vy"], out["vz"] = x, -y, -z, vx, -vy, -vz
         return out
 
     def true_attitude_deg(self) -> np.ndarray:

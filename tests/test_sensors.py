@@ -95,7 +95,7 @@ def test_load_cell_and_tachometer_read_the_rotor(vehicle):
     sim = Simulator("thrust-stand", vehicle, sensor_noise=False)
     v = sim.vehicle
     sim.set_rotor_commands([70.0])
-    for _ in range(50):  # 1 s: the motor / servo has settled, the cell's spring is at rest
+    for _ in range(150):  # 3 s: the motor / servo has settled, the cell's spring is at rest
         sim.tick()
     thrust, torque = sim.load_cell()
     rotor_force = float(sim.data.actuator_force[sim.scene.thrust_actuators[0]])

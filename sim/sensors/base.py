@@ -8,7 +8,7 @@ scalar and the batched paths share one conversion.
 Noise is the suite's: the noisy channels of all its sensors draw together, so one seed gives one stream whatever
 reads it. At reset a bias is drawn for each sensor that has one (``normal(0, bias_std, n_channels)``, in suite
 order); at every noisy tick one ``standard_normal(n_noisy)`` vector covers every noisy channel in suite order, and
-a reading is ``value + (bias + std * z)``.
+a reading is ``value + (bias + std * z)`` (:class:`NoiseStream`).
 """
 
 from __future__ import annotations
@@ -116,9 +116,44 @@ class SensorSuite:
             out[..., sl] = s.read(x)
         return out
 
-    def add_noise(self, values: np.ndarray, bias: np.ndarray, z: np.ndarray) -> None:
-        """In place: ``values[..., noisy] += bias + std * z`` with ``z`` standard normals ``(..., n_noisy)``."""
+    def noise(self, rngs, bias) -> "NoiseStream":
+        """The noise stream of one simulation (one Generator, ``bias (n_noisy,)``) or of several (a list of
+        Generators, ``bias (n, n_noisy)``)."""
+        return NoiseStream(self.noise_std, rngs, bias)
+
+    def add_noise(self, values: np.ndarray, noise: np.ndarray) -> None:
+        """In place: ``values[..., noisy] += noise`` (one tick of :meth:`NoiseStream.next`)."""
         if self._noisy_cols.size == values.shape[-1]:
-            values += bias + self.noise_std * z
+            values += noise
         else:
-            values[..., self._noisy_cols] += bias + self.noise_std * z
+            values[..., self._noisy_cols] += noise
+
+
+#: ticks of noise drawn at a time: one Generator call per chunk instead of per tick (bounds the memory too)
+NOISE_CHUNK_TICKS = 256
+
+
+class NoiseStream:
+    """``bias + std * z`` tick after tick, ``z`` drawn :data:`NOISE_CHUNK_TICKS` ticks at a time.
+
+    A Generator fills an array sample by sample, so a chunk of ``(ticks, n_noisy)`` normals is the same stream
+    as one ``standard_normal(n_noisy)`` per tick: chunking changes the cost, not a single reading. Ticks without
+    noise (``noise_on``) simply do not call :meth:`next`.
+    """
+
+    def __init__(self, std: np.ndarray, rngs, bias: np.ndarray):
+        self.std, self.rngs, self.bias = std, rngs, bias
+        self._chunk = None
+        self._k = NOISE_CHUNK_TICKS
+
+    def next(self) -> np.ndarray:
+        if self._k == NOISE_CHUNK_TICKS:
+            shape = (NOISE_CHUNK_TICKS, self.std.size)
+            if isinstance(self.rngs, np.random.Generator):
+                z = self.rngs.standard_normal(shape)
+            else:  # one stream per simulation: (ticks, n, n_noisy)
+                z = np.stack([g.standard_normal(shape) for g in self.rngs], axis=1)
+            self._chunk = self.bias + self.std * z
+            self._k = 0
+        self._k += 1
+        return self._chunk[self._k - 1]
