@@ -36,19 +36,19 @@ from mujoco.batch import Batch, SimulationError
 
 from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet
-from rotorlab.sim import scenarios
+from rotorlab.sim import randomize, scenarios
 from rotorlab.sim.control.vector import VectorAttitudeController, VectorSupervisor
-from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance, total_wind_ned
+from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance, total_wind_ned, toward_ned
 from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quats
 from rotorlab.sim.runner import BASE_COLUMNS, resolve_gains
 from rotorlab.sim.simulator import (DIVERGENCE_WARNINGS, Simulator, at_rig_stop, body_wind, diverged_reason,
                                     rig_stop_reason)
-from rotorlab.scenes import PREFIX
+from rotorlab.scenes import PHYSICS_DT_S, PREFIX
 from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
 
 #: scenes the batched runner supports (the rigs: cascade and open-loop modes without position hold)
 SCENES = ("pitch-rig", "roll-rig")
-#: keys of ``vary``: relative standard deviations of airframe mass and inertia, wind speed std (m/s)
+#: the randomisation parameters (:mod:`rotorlab.sim.randomize`) the batch's per-simulation model fields can carry
 VARY_KEYS = ("mass", "inertia", "wind")
 _NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
 
@@ -177,25 +177,21 @@ def _check_setup(name: str, setup: scenarios.Setup) -> None:
                           "run it with rotorlab.sim.runner.run_scenario", field="scenario", got=name)
 
 
-def _variation(vary: dict | None, seeds: np.ndarray, mass_kg: float, inertia) -> dict:
-    """Per-simulation parameters, each drawn from a Generator seeded by the simulation's seed alone (so a
-    simulation's parameters do not depend on the batch it runs in)."""
+def _variation(vary: dict | None, seeds: np.ndarray, vehicle, mass_kg: float, inertia) -> tuple[dict, dict]:
+    """Per-simulation parameters from :func:`rotorlab.sim.randomize.draw`, each with a Generator seeded by the
+    simulation's seed alone (so a simulation's parameters do not depend on the batch it runs in)."""
     vary = dict(vary or {})
-    unknown = sorted(set(vary) - set(VARY_KEYS))
-    if unknown:
-        raise ConfigError(field=f"vary.{unknown[0]}", expected=f"one of {list(VARY_KEYS)}", got=unknown[0])
-    for k, s in vary.items():
-        if not (np.isscalar(s) and float(s) >= 0):
-            raise ConfigError(field=f"vary.{k}", expected="a standard deviation >= 0", got=s)
-    n = len(seeds)
-    z = np.array([np.random.default_rng([int(s), 0x76617279]).standard_normal(6) for s in seeds]).reshape(n, 6)
-    # a factor stays positive: a draw beyond -3.3 sigma of a 30 % spread would otherwise make a negative mass
-    mass = mass_kg * np.maximum(1.0 + float(vary.get("mass", 0.0)) * z[:, 0], 0.1)
-    inertia = np.asarray(inertia, dtype=float)[None, :] * np.maximum(1.0 + float(vary.get("inertia", 0.0)) * z[:, 1],
-                                                                     0.1)[:, None]
-    wind = np.zeros((n, 3))
-    wind[:, :2] = float(vary.get("wind", 0.0)) * z[:, 2:4]
-    return {"mass_kg": mass, "inertia_kgm2": inertia, "wind_ned_mps": wind, "_vary": vary}
+    for k in vary:
+        if k in randomize.KEYS and k not in VARY_KEYS:
+            raise ConfigError(f"'{k}' needs a model compiled per simulation; run it with rotorlab montecarlo",
+                              field=f"vary.{k}", expected=f"one of {list(VARY_KEYS)}", got=k)
+    draws = [randomize.draw(vehicle, vary, np.random.default_rng([int(s), 0x76617279]), PHYSICS_DT_S, keys=VARY_KEYS,
+                            field="vary") for s in seeds]
+    mass = mass_kg * np.array([d.mass_factor for d in draws])
+    inertia = np.asarray(inertia, dtype=float)[None, :] * np.array([d.inertia_factors for d in draws])
+    wind = np.array([d.wind_speed_mps * toward_ned(d.wind_from_deg) for d in draws]).reshape(len(seeds), 3)
+    return {"mass_kg": mass, "inertia_kgm2": inertia, "wind_ned_mps": wind}, randomize.check_spreads(vary, VARY_KEYS,
+                                                                                                       "vary")
 
 
 def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None, seeds=None, vary: dict | None = None,
@@ -217,9 +213,10 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
         Seeds of the simulations (IMU noise and bias as the scalar simulator with that seed; parameter
         variation). None: ``0 .. n-1``; an int ``s``: ``s .. s+n-1``.
     vary : dict, optional
-        ``{'mass': rel_std, 'inertia': rel_std, 'wind': std_mps}``: airframe mass and inertia scaled by
-        ``1 + rel_std N(0, 1)`` (one factor per simulation for the whole inertia), a steady horizontal wind with
-        north and east components ``std_mps N(0, 1)`` added to the scenario's.
+        ``{'mass': s, 'inertia': s, 'wind': s_mps}``, drawn as everywhere in rotorlab
+        (:mod:`rotorlab.sim.randomize`): airframe mass and each principal inertia times factors uniform in
+        ``[1 - s, 1 + s]``, a steady horizontal wind of speed uniform in ``[0, s_mps]`` from a uniform direction,
+        added to the scenario's.
     duration_s : float, optional
         Run length, s (default the scenario's).
     scene : str, optional
@@ -261,14 +258,13 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     sim = Simulator(scene, v, seed=0, sensor_noise=False, disturbances=setup.disturbances)
     m, d0 = sim.model, sim.data
     airframe = m.body(f"{PREFIX}airframe").id
-    params = _variation(vary, seeds, float(m.body_mass[airframe]), m.body_inertia[airframe])
+    params, vary_d = _variation(vary, seeds, v, float(m.body_mass[airframe]), m.body_inertia[airframe])
     row = np.empty(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_INTEGRATION))
     mujoco.mj_getState(m, d0, row, mujoco.mjtState.mjSTATE_INTEGRATION)
     batch = Batch(m, nsim=n, nthread=nthread)
     if batch.nstate != row.size:
         raise RuntimeError(f"mujoco.batch rows hold {batch.nstate} numbers, mjSTATE_INTEGRATION {row.size}")
     batch.state[:] = row
-    vary_d = params.pop("_vary")
     if vary_d.get("mass") or vary_d.get("inertia"):
         batch.expand("body_mass")[:, airframe] = params["mass_kg"]
         batch.expand("body_inertia")[:, airframe, :] = params["inertia_kgm2"]

@@ -9,27 +9,11 @@ makes :meth:`RotorlabEnv.restore_state` exact.
 
 Domain randomisation (``randomize=`` at ``make`` or in ``reset(options=...)``)
 -------------------------------------------------------------------------------
-A dict of parameter -> spread, sampled uniformly at every reset from the env's seeded generator:
-
-``mass``, ``inertia``, ``motor_lag``, ``imu_mount``
-    relative half-width, e.g. ``0.1`` draws a factor in [0.9, 1.1] for the vehicle mass, the three principal
-    inertias (one factor each), the rotor servo/motor time constant and the IMU mount natural frequency.
-``delay_s``
-    ``(low, high)`` range of the transport delay, s, rounded to the physics step (MuJoCo's actuator history
-    buffer realises it).
-
-The vehicle is rebuilt with ``dataclasses.replace`` and the scene recompiled; compiled simulators are cached per
-parameter set (LRU, :data:`SIM_CACHE_SIZE`), so a randomised reset costs one scene compile (tens of ms).
-
-Actions: normalised to [-1, 1]
-------------------------------
-Every env's ``action_space`` is ``Box(-1, 1)`` (what stable-baselines3 and gymnasium's checker expect); each
-component maps affinely onto its physical range, ``physical = mid + half * a`` with ``mid = (low + high) / 2``
-and ``half = (high - low) / 2`` from :attr:`RotorlabEnv.action_low` / :attr:`RotorlabEnv.action_high` (units
-in :attr:`RotorlabEnv.action_units`). ``info['action_physical']`` is the command actually applied, in those
-units; :meth:`RotorlabEnv.physical_action` and :meth:`RotorlabEnv.normalize_action` convert both ways
-(a controller written in physical units, e.g. :mod:`rotorlab.sim.env_baselines`, calls the latter).
-Components outside [-1, 1] are clipped (``info['action_clipped']``).
+A dict of parameter -> spread (``mass``, ``inertia``, ``motor_lag``, ``imu_mount``, ``delay_s``), drawn at every
+reset from the env's seeded generator with the distributions of :mod:`rotorlab.sim.randomize` (the same as
+``rotorlab montecarlo`` and the batched runner). The vehicle is rebuilt with ``dataclasses.replace`` and the scene
+recompiled; compiled simulators are cached per parameter set (LRU, :data:`SIM_CACHE_SIZE`), so a randomised reset
+costs one scene compile (tens of ms).
 """
 
 from __future__ import annotations
@@ -44,10 +28,12 @@ import mujoco
 import numpy as np
 
 from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.sim import randomize
 from rotorlab.sim.simulator import Simulator
 from rotorlab.vehicles import VehicleSpec, load_vehicle
 
 SIM_CACHE_SIZE = 16
+#: the randomisation parameters of the envs (wind is a disturbance there: ``disturbances=``)
 RANDOMIZE_KEYS = ("mass", "inertia", "motor_lag", "imu_mount", "delay_s")
 RENDER_SIZE = (480, 640)  # height, width: the scenes' offscreen buffer
 
@@ -65,50 +51,13 @@ class EnvState:
 
 
 def randomized_vehicle(v: VehicleSpec, spreads: dict, rng: np.random.Generator, physics_dt_s: float):
-    """Draw one vehicle from ``spreads`` (see the module docstring); returns ``(vehicle, key)`` where ``key`` is
-    the hashable parameter set the compiled scene is cached under."""
-    for k in spreads:
-        if k not in RANDOMIZE_KEYS:
-            raise UnknownNameError("randomize parameter", k, RANDOMIZE_KEYS)
-
-    def factor(name):
-        s = float(spreads.get(name, 0.0))
-        if not 0.0 <= s < 1.0:
-            raise ConfigError(field=f"randomize.{name}", expected="a relative spread in [0, 1)", got=s)
-        return float(rng.uniform(1.0 - s, 1.0 + s)) if s else 1.0
-
-    mass = v.mass_kg * factor("mass")
-    for _ in range(100):
-        # one factor per principal axis; draws that break the triangle inequality (A + B >= C, a physical
-        # rigid body) are rejected, which keeps the draw uniform over the feasible part of the box
-        inertia = tuple(float(j) * factor("inertia") for j in v.inertia_kgm2)
-        a, b, c = sorted(inertia)
-        if a + b >= c:
-            break
-    else:
-        raise ConfigError(field="randomize.inertia", expected="a spread that keeps A + B >= C", got=spreads["inertia"])
-    lag = tuple(t * factor("motor_lag") for t in v.rotor.lag_s)
-    delay = v.rotor.delay_s
-    if "delay_s" in spreads:
-        lo, hi = _range(spreads["delay_s"], "randomize.delay_s")
-        k = int(rng.integers(round(lo / physics_dt_s), round(hi / physics_dt_s) + 1))
-        delay = (k * physics_dt_s,) * len(v.rotor.delay_s)
-    imu = dataclasses.replace(v.imu, mount_frequency_hz=v.imu.mount_frequency_hz * factor("imu_mount"))
-    rotor = dataclasses.replace(v.rotor, lag_s=lag, delay_s=delay)
-    out = dataclasses.replace(v, mass_kg=mass, inertia_kgm2=inertia, rotor=rotor, imu=imu)
-    key = (round(mass, 12), tuple(round(j, 12) for j in inertia), tuple(round(t, 12) for t in lag),
-           tuple(round(d, 9) for d in delay), round(imu.mount_frequency_hz, 12))
+    """Draw one vehicle from ``spreads`` (:mod:`rotorlab.sim.randomize`); returns ``(vehicle, key)`` where ``key``
+    is the hashable parameter set the compiled scene is cached under."""
+    out = randomize.apply(v, randomize.draw(v, spreads, rng, physics_dt_s, keys=RANDOMIZE_KEYS))
+    key = (round(out.mass_kg, 12), tuple(round(j, 12) for j in out.inertia_kgm2),
+           tuple(round(t, 12) for t in out.rotor.lag_s), tuple(round(d, 9) for d in out.rotor.delay_s),
+           round(out.imu.mount_frequency_hz, 12))
     return out, key
-
-
-def _range(val, field):
-    try:
-        lo, hi = (float(x) for x in val)
-    except (TypeError, ValueError):
-        raise ConfigError(field=field, expected="a (low, high) pair", got=val) from None
-    if not 0.0 <= lo <= hi:
-        raise ConfigError(field=field, expected="0 <= low <= high", got=val)
-    return lo, hi
 
 
 class RotorlabEnv(gym.Env):

@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from rotorlab.errors import ConfigError
+from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import AxisGains, GainSet, LoopGains
 from rotorlab.sim.batch import run_batch
 from rotorlab.sim.control.pid import DiscretePID
@@ -170,7 +170,9 @@ def test_unsupported_requests_are_named():
         run_batch("rope-pull", n=2, duration_s=0.1)
     with pytest.raises(ConfigError, match="scene"):
         run_batch("gust", n=2, scene="free-flight", duration_s=0.1)
-    with pytest.raises(ConfigError, match="vary.delay"):
+    with pytest.raises(UnknownNameError, match="delay"):
         run_batch("setpoint", n=2, vary={"delay": 0.1}, duration_s=0.1)
+    with pytest.raises(ConfigError, match="vary.delay_s"):
+        run_batch("setpoint", n=2, vary={"delay_s": 0.01}, duration_s=0.1)
     with pytest.raises(ConfigError, match="seeds"):
         run_batch("setpoint", n=2, seeds=[1, 2, 3], duration_s=0.1)

@@ -1,23 +1,22 @@
 """Scenario Monte Carlo over seeded parameter spreads of the twin (mass, inertia, delay, wind).
 
 Each sample i draws its parameters and its run seed from child i of SeedSequence(--seed), so the numbers do
-not depend on the executor or the batch size. --vary takes NAME or NAME=SPREAD items: mass and inertia are
-scaled by a factor uniform in [1 - SPREAD, 1 + SPREAD] (default 0.1), delay adds uniform [0, SPREAD] s of
-transport delay (default 0.02 s), wind sets a mean wind uniform in [0, SPREAD] m/s (default 5; gust, hover
-and prbs-flight only). Writes one Parquet of metrics per batch (batch-0000.parquet, ...) and summary.json
+not depend on the executor or the batch size. --vary takes NAME or NAME=SPREAD items, drawn as in the gym envs
+and the batched runner (rotorlab.sim.randomize): the mass and each principal inertia are scaled by factors
+uniform in [1 - SPREAD, 1 + SPREAD] (default 0.1), delay is a whole number of physics steps uniform in
+[delay, delay + SPREAD] s (default 0.02 s), wind sets a mean wind uniform in [0, SPREAD] m/s (default 5; gust,
+hover and prbs-flight only). Writes one Parquet of metrics per batch (batch-0000.parquet, ...) and summary.json
 (mean, std and 5/50/95 % quantiles of every metric, the fraction of runs that stopped early), and prints the
 statistics of the scenario's key metrics.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
 
-#: parameter -> default spread: multiplicative uniform +-spread for mass and inertia, additive
-#: uniform [0, spread] s of extra transport delay, mean wind uniform in [0, spread] m/s
+#: parameter -> default spread (distributions: rotorlab.sim.randomize; ``delay`` is its ``delay_s``)
 VARY = {"mass": 0.10, "inertia": 0.10, "delay": 0.02, "wind": 5.0}
 VARY_UNITS = {"mass": "relative", "inertia": "relative", "delay": "s", "wind": "m/s"}
 WIND_OPTION = {"gust": "mean_wind_mps", "hover": "wind_mps", "prbs-flight": "wind_mps"}
@@ -72,23 +71,17 @@ def parse_vary(text: str) -> dict:
 
 
 def draw(vehicle, vary: dict, seed_seq):
-    """Varied vehicle spec, scenario options and run seed of one sample; ``vary`` maps a parameter to its spread."""
+    """Varied vehicle spec and drawn parameters (with the run seed) of one sample; ``vary`` maps a parameter to
+    its spread. The draw is :func:`rotorlab.sim.randomize.draw`, the one the envs and the batched runner use."""
+    from rotorlab.scenes import PHYSICS_DT_S
+    from rotorlab.sim import randomize
+
     rng = np.random.default_rng(seed_seq)
-    spec, params = vehicle, {}
-    if "mass" in vary:
-        params["mass_scale"] = float(rng.uniform(1 - vary["mass"], 1 + vary["mass"]))
-        spec = dataclasses.replace(spec, mass_kg=spec.mass_kg * params["mass_scale"])
-    if "inertia" in vary:
-        params["inertia_scale"] = float(rng.uniform(1 - vary["inertia"], 1 + vary["inertia"]))
-        spec = dataclasses.replace(spec, inertia_kgm2=tuple(x * params["inertia_scale"] for x in spec.inertia_kgm2))
-    if "delay" in vary:
-        params["extra_delay_s"] = float(rng.uniform(0.0, vary["delay"]))
-        spec = dataclasses.replace(spec, rotor=dataclasses.replace(
-            spec.rotor, delay_s=tuple(d + params["extra_delay_s"] for d in spec.rotor.delay_s)))
-    if "wind" in vary:
-        params["wind_mps"] = float(rng.uniform(0.0, vary["wind"]))
+    spreads = {("delay_s" if k == "delay" else k): v for k, v in vary.items()}
+    d = randomize.draw(vehicle, spreads, rng, PHYSICS_DT_S, field="--vary")
+    params = {k: v for k, v in d.as_dict().items() if k != "wind_from_deg"}  # the scenario sets the direction
     params["run_seed"] = int(rng.integers(2**31))
-    return spec, params
+    return randomize.apply(vehicle, d), params
 
 
 def run_sample(task: dict) -> dict:
@@ -98,8 +91,8 @@ def run_sample(task: dict) -> dict:
 
     spec, params = draw(task["vehicle"], task["vary"], task["seed_seq"])
     opts = {}
-    if "wind_mps" in params and task["scenario"] in WIND_OPTION:
-        opts[WIND_OPTION[task["scenario"]]] = params["wind_mps"]
+    if "wind" in task["vary"] and task["scenario"] in WIND_OPTION:
+        opts[WIND_OPTION[task["scenario"]]] = params["wind_speed_mps"]
     try:
         r = run_scenario(task["scenario"], spec, gains=task["gains"], seed=params["run_seed"],
                          duration_s=task["duration_s"], options=opts)
