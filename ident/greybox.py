@@ -39,6 +39,7 @@ __all__ = [
     "GreyBoxResult",
     "oe_fit",
     "oe_fit_closed_loop",
+    "periodic_average",
     "simulate_greybox",
     "simulate_closed_loop",
 ]
@@ -337,25 +338,28 @@ def _controller_d(controller, dt: float) -> ct.StateSpace:
     return ct.c2d(K, dt, method="tustin")
 
 
-def _closed_loop(plant_d: ct.StateSpace, K: ct.StateSpace, feedback_output: int) -> ct.StateSpace:
+def _closed_loop(plant_d: ct.StateSpace, K: ct.StateSpace, feedback_output) -> ct.StateSpace:
     """Discrete closed loop ``r -> y`` (all plant outputs), plant states first.
 
-    ``K`` with one input is driven by the error ``r - y[feedback_output]``; with two inputs it gets
-    ``[r, y[feedback_output]]`` (the 2-DoF form of :func:`rotorlab.lti.pid2_ss`).
+    ``feedback_output``: one plant output index, or a sequence of them. ``K`` with one input is driven by the
+    error ``r - y[feedback_output]`` (one feedback output); with ``1 + len(feedback_output)`` inputs it gets
+    ``[r, y[fb_0], y[fb_1], ...]`` (the 2-DoF form of :func:`rotorlab.lti.pid2_ss`, or a PD on angle and rate).
     """
+    fb = [int(feedback_output)] if np.ndim(feedback_output) == 0 else [int(i) for i in feedback_output]
     Ap, Bp, Cp, Dp = (np.asarray(M, float) for M in (plant_d.A, plant_d.B, plant_d.C, plant_d.D))
     Ak, Bk, Ck, Dk = (np.asarray(M, float) for M in (K.A, K.B, K.C, K.D))
-    if np.any(Dp[feedback_output]):
+    if np.any(Dp[fb]):
         raise ValueError("closed-loop simulation needs a strictly proper plant on the feedback output")
-    if K.ninputs == 1:
+    if K.ninputs == 1 and len(fb) == 1:
         Br, By = Bk[:, [0]], -Bk[:, [0]]
         Dr, Dy = Dk[:, [0]], -Dk[:, [0]]
-    elif K.ninputs == 2:
-        Br, By = Bk[:, [0]], Bk[:, [1]]
-        Dr, Dy = Dk[:, [0]], Dk[:, [1]]
+    elif K.ninputs == 1 + len(fb):
+        Br, By = Bk[:, [0]], Bk[:, 1:]
+        Dr, Dy = Dk[:, [0]], Dk[:, 1:]
     else:
-        raise ValueError(f"controller must have 1 input (error) or 2 inputs (r, y); it has {K.ninputs}")
-    cy = Cp[[feedback_output]]
+        raise ValueError(f"controller must have 1 input (error) or {1 + len(fb)} inputs (r, y_fb); "
+                         f"it has {K.ninputs}")
+    cy = Cp[fb]
     # u = Ck xk + Dr r + Dy y_fb,  y_fb = cy xp (strictly proper)
     A = np.block([[Ap + Bp @ Dy @ cy, Bp @ Ck], [By @ cy, Ak]])
     B = np.vstack([Bp @ Dr, Br])
@@ -555,7 +559,7 @@ def oe_fit(model: GreyBoxModel, u, y, dt: float, theta0: Mapping[str, float] | N
 def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
                        theta0: Mapping[str, float] | None = None, *, feedback_output: int = 0,
                        estimate_x0: bool = False, restarts: int = 0, rng=None, max_nfev: int | None = None,
-                       cov: str = "hac", progress: bool = False) -> GreyBoxResult:
+                       cov: str = "hac", progress: bool = False, periods: int = 0) -> GreyBoxResult:
     """Indirect closed-loop output-error fit: the plant is estimated through the known closed loop.
 
     The loop ``u = C (r - y_fb)`` (or ``u = C [r; y_fb]`` for a two-input controller such as
@@ -575,8 +579,15 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
         Measured plant outputs.
     dt : float
         Sample time (s).
-    feedback_output : int
-        Which plant output closes the loop.
+    feedback_output : int or sequence of int
+        Which plant output(s) close the loop (a PD on angle and rate: ``(0, 1)`` with a controller on
+        ``[r, angle, rate]``).
+    periods : int
+        0: ``r``/``y`` are a record starting with the loop at rest. ``> 0``: they are one period of a periodic
+        experiment in steady state (TUHH: the PRBS response averaged over ten periods, :func:`periodic_average`);
+        the loop is simulated from rest over ``periods + 1`` repetitions of ``r`` and the last one is compared,
+        measured and simulated outputs each with its mean removed (constant sensor biases and trims are not
+        part of the structure). ``periods`` must let the start-up transient die out.
 
     cov : {'hac', 'white'}
         Default ``'hac'``: the residual of an indirect closed-loop fit is the measurement noise filtered
@@ -597,9 +608,34 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
         raise ValueError(f"r has {len(r2)} samples, y has {len(y2)}")
     K = _controller_d(controller, dt)
     nx = model.ss().nstates
+    if periods:
+        if estimate_x0:
+            raise ValueError("a periodic steady-state fit has no initial state to estimate (estimate_x0=False)")
+        n = len(r2)
+        r_rep = np.tile(r2, (int(periods) + 1, 1))
+        y2 = y2 - y2.mean(axis=0)
 
-    def simulate(th):
-        cl = _closed_loop(model.discretize(dt, th), K, feedback_output)
-        return _lsim(cl, r2), (_free_response_basis(cl, nx, len(r2)) if estimate_x0 else None)
+        def simulate(th):
+            ys = _lsim(_closed_loop(model.discretize(dt, th), K, feedback_output), r_rep)[-n:]
+            return ys - ys.mean(axis=0), None
+    else:
+        def simulate(th):
+            cl = _closed_loop(model.discretize(dt, th), K, feedback_output)
+            return _lsim(cl, r2), (_free_response_basis(cl, nx, len(r2)) if estimate_x0 else None)
 
     return _fit(model, y2, dt, simulate, theta0, estimate_x0, nx, restarts, rng, max_nfev, progress, cov)
+
+
+def periodic_average(x, period: int, skip: int = 1):
+    """Average of the whole periods of ``x`` (samples along axis 0) after the first ``skip`` periods (the
+    transient); TUHH averaged ten PRBS periods to raise the signal-to-noise ratio (doc 002 sec. 4).
+
+    Returns
+    -------
+    ndarray, (period,) + x.shape[1:]
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.shape[0] // period - skip
+    if period < 1 or n < 1:
+        raise ValueError(f"need at least {skip + 1} whole periods of {period} samples; got {x.shape[0]} samples")
+    return x[skip * period:(skip + n) * period].reshape((n, period) + x.shape[1:]).mean(axis=0)

@@ -125,7 +125,8 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     setup = mod.setup(ctx)
     noise = setup.sensor_noise if sensor_noise is None else sensor_noise
     sim = Simulator(scene, v, seed=seed, sensor_noise=noise, disturbances=setup.disturbances)
-    fs = make_flight_software(v, gs, setup, sim.control_dt_s, controller)
+    fs = make_flight_software(v, gs, setup, sim.control_dt_s, controller if controller is not None else
+                              (setup.controller or None))
     n_ticks = int(round(duration_s / sim.control_dt_s))
     columns = {} if setup.drive is not None else dict(BASE_COLUMNS)
     if scene == "free-flight":

@@ -160,3 +160,44 @@ def test_unidentifiable_pair_is_reported():
     assert not np.isfinite(res.std["J"])
     # only the ratio K/J is determined by the data
     assert res.params["K"] / res.params["J"] == pytest.approx(tuhh_torque_gain("pitch") / 0.0196, rel=1e-6)
+
+
+def test_periodic_closed_loop_fit_with_pd_on_angle_and_rate():
+    # ref. 002 sec. 4: known PD on angle and rate, a full-length PRBS repeated, the response averaged over ten
+    # periods after the first, one periodic steady-state period fitted (means removed: a constant bias is
+    # no part of the structure). Noise enters the feedback as on a real IMU.
+    from scipy.signal import max_len_seq
+
+    from rotorlab.ident import periodic_average
+
+    dt, kp, kd = 0.004, 0.6, 0.14  # % per deg, % per deg/s
+    K = 0.01942 * 180 / np.pi  # deg per % of command, a priori
+    truth = tuhh_axis_structure("pitch", outputs=("angle", "rate"), K=K)
+    tv = truth.values()
+    P = truth.discretize(dt)
+    A, B, Cm = (np.asarray(M, float) for M in (P.A, P.B, P.C))
+    r1 = np.repeat(max_len_seq(6)[0] * 2.0 - 1.0, 10) * 3.0  # 63 bits of 40 ms, +-3 deg
+    n, periods = r1.size, 11
+    ctl = ct.ss([], [], [], [[kp, -kp, -kd]], dt)
+    covered = 0
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        x = np.zeros(A.shape[0])
+        bias = np.array([0.0, 0.3])  # a turn-on gyro bias
+        Y = np.empty((n * periods, 2))
+        for k in range(n * periods):
+            y = Cm @ x + bias + rng.standard_normal(2) * (0.05, 0.5)
+            u = kp * (r1[k % n] - y[0]) - kd * y[1]
+            x = A @ x + B[:, 0] * u
+            Y[k] = y
+        avg = periodic_average(Y, n, skip=1)
+        res = oe_fit_closed_loop(tuhh_axis_structure("pitch", outputs=("angle", "rate"), K=K, J=0.01, p=15.0, Td=0.01),
+                                 ctl, r1, avg, dt, feedback_output=(0, 1), periods=2)
+        for name in ("J", "p", "Td"):
+            assert res.params[name] == pytest.approx(tv[name], rel=0.05), res.summary()
+        covered += sum(res.covers(tv).values())
+    assert covered >= 6  # of 9 intervals
+    with pytest.raises(ValueError, match="whole periods"):
+        periodic_average(np.zeros(10), 6, skip=1)
+    with pytest.raises(ValueError, match="initial state"):
+        oe_fit_closed_loop(truth, ctl, r1, avg, dt, feedback_output=(0, 1), periods=2, estimate_x0=True)

@@ -24,6 +24,7 @@ SCENARIOS = {
     "hover": "hover",
     "prbs": "prbs",
     "prbs-closed": "prbs_closed",
+    "prbs-periodic": "prbs_periodic",
     "prbs-flight": "prbs_flight",
     "thrust-sweep": "thrust_sweep",
     "thrust-steps": "thrust_steps",
@@ -69,6 +70,9 @@ class Setup:
     noise_on: Callable | None = None  # noise_on(t) -> bool: when the requested IMU noise is on (default always)
     drive: Callable | None = None  # drive(sim, t) -> dict of extra columns; replaces the flight software (bench tests)
     notes: dict = dataclasses.field(default_factory=dict)
+    #: discrete controllers (ControllerSpec) the scenario flies in place of the cascade, e.g. the known PD of a
+    #: closed-loop identification; a controller given to the run replaces them
+    controller: list = dataclasses.field(default_factory=list)
 
 
     def limits(self, vehicle):
