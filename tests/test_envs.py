@@ -183,9 +183,9 @@ def test_domain_randomisation_rebuilds_the_model_with_sampled_parameters():
         env.reset(seed=s)
         v, m = env.vehicle, env.sim.model
         assert 0.8 * base.mass_kg <= v.mass_kg <= 1.2 * base.mass_kg
-        # the compiled model carries the sampled airframe mass and the sampled delay line
+        # the compiled model carries the sampled vehicle mass (airframe, IMU board, rotor discs) and delay line
         air = m.body("vehicle/airframe").id
-        assert m.body_mass[air] == pytest.approx(v.mass_kg - v.imu.mass_kg)
+        assert m.body_subtreemass[air] == pytest.approx(v.mass_kg)
         act = m.actuator("vehicle/thrust1").id
         # the history buffer holds delay/dt + 1 samples (rotorlab.vehicles.build)
         assert m.actuator_history[act, 0] == round(v.rotor.delay_s[0] / m.opt.timestep) + 1

@@ -54,10 +54,12 @@ def test_supervisor_keeps_20_deg_under_prbs():
 
 
 def test_unstable_gains_stop_the_run_with_the_reason(tmp_path):
-    def x20(g):
-        return dataclasses.replace(g, kp=20 * g.kp, ki=20 * g.ki, kd=20 * g.kd)
+    def reversed_sign(g):
+        return dataclasses.replace(g, kp=-g.kp, ki=-g.ki, kd=-g.kd)
 
-    bad = GainSet("x20", {a: AxisGains(x20(g.outer), x20(g.inner)) for a, g in STD.axes.items()})
+    # the attitude loop with its sign reversed is positive feedback on any plant: the tilt must run away (a
+    # merely high-gain set can settle into a saturation-bound limit cycle against the rotor hub springs)
+    bad = GainSet("reversed", {a: AxisGains(reversed_sign(g.outer), g.inner) for a, g in STD.axes.items()})
     r = run_scenario("gust", "anteos-p2a2", scene="free-flight", gains=bad, duration_s=10.0, out=tmp_path)
     assert r.stopped and "divergence limit" in r.stopped
     info = json.loads((tmp_path / "run.json").read_text())

@@ -10,6 +10,10 @@ thrust stand). Everything that can be native MuJoCo is:
   where ctrl is the axial wind at the rotor, so thrust depends on the *air-relative* climb speed;
 * flapping / H-force: two in-plane site actuators per rotor, ``force = k_h (ctrl - v_inplane)``, whose
   gear adds the flapping moment ``flap_arm * H`` (forward airspeed tilts the disc back: nose-up);
+* hingeless hub: each rotor disc is a small body (the blades' tilt inertia) on two hinges (pitch, roll) whose
+  springs/dampers are the hub stiffness; two site actuators ``torque = D (ctrl - omega_disc)`` with ctrl = 0
+  damp the disc's tilt rate in inertial axes (the air). The disc drags the airframe through the hub spring:
+  rotor damping of body rates at low frequency, a spring to the air above ``K_hub / D``;
 * the IMU on its own small body, joined to the airframe by three spring-damper hinges (the published
   IMU mass-spring-damper J, k, c), carrying the gyro and accelerometer;
 * fuselage drag from MuJoCo's ellipsoid fluid model, driven by ``opt.wind`` (set by the wind disturbances).
@@ -64,10 +68,19 @@ def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
     collision.geom.density = 0
 
     frame = s.worldbody.add_body(name="airframe")
-    frame.mass = v.mass_kg - v.imu.mass_kg
-    frame.inertia = list(v.inertia_kgm2)
-    # the vehicle's CG (airframe + IMU board) is the airframe origin, which the rigs put on the pivot
-    frame.ipos = [-v.imu.mass_kg * x / frame.mass for x in v.imu.offset_m]
+    pos = v.rotor_positions()
+    hub = _hub_inertia(v)
+    disc_mass = hub[0] if hub else 0.0
+    frame.mass = v.mass_kg - v.imu.mass_kg - disc_mass * v.n_rotors
+    # the TOML inertia is the whole vehicle's: the rotor discs' share (parallel axis plus their own) comes off
+    disc_inertia = np.zeros(3)
+    if hub:
+        for p in pos:
+            disc_inertia += disc_mass * (p @ p - p**2) + np.array([hub[1], hub[1], hub[2]])
+    frame.inertia = list(np.asarray(v.inertia_kgm2) - disc_inertia)
+    # the vehicle's CG (airframe + IMU board + rotor discs) is the airframe origin, which the rigs put on the pivot
+    moment = v.imu.mass_kg * np.asarray(v.imu.offset_m) + disc_mass * pos.sum(axis=0)
+    frame.ipos = list(-moment / frame.mass)
     frame.explicitinertial = True
 
     bx, by, bz = v.body_size_m
@@ -76,7 +89,6 @@ def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
     # Drag acts at the fuselage centre, which is the centre of pressure: the ellipsoid fluid model is MuJoCo's
     # native quadratic drag with the wind of opt.wind.
     fus.fluid_ellipsoid = 1
-    pos = v.rotor_positions()
     R = v.rotor.radius_m
     for i, p in enumerate(pos, start=1):
         ang = math.atan2(p[1], p[0])
@@ -114,7 +126,45 @@ def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
 
     for i in range(1, v.n_rotors + 1):
         add_rotor(s, v, i, physics_dt_s)
+        if hub:
+            _add_hub(s, frame, v, i, pos[i - 1], hub)
     return s
+
+
+def _hub_inertia(v: VehicleSpec):
+    """(blade mass of one rotor kg, disc tilt inertia kg m^2, spin-axis inertia kg m^2), or None for a rigid rotor.
+
+    Uniform blades: ``I_b = m_b R^2 / 3`` with ``I_b = rho a c R^4 / gamma`` (the Lock number's definition); the
+    disc of N blades has the tilt inertia ``(N/2) I_b`` about any diameter and ``N I_b`` about the shaft.
+    """
+    r = v.rotor
+    if r.hub_stiffness_Nm_per_rad <= 0.0:
+        return None
+    from .rotor_theory import hover
+
+    i_b = hover(v).blade_flap_inertia_kgm2
+    return r.blades * 3.0 * i_b / r.radius_m**2, r.blades / 2.0 * i_b, r.blades * i_b
+
+
+def _add_hub(s: mujoco.MjSpec, frame, v: VehicleSpec, i: int, p, hub) -> None:
+    r = v.rotor
+    mass, i_tilt, i_spin = hub
+    d = frame.add_body(name=f"hub{i}", pos=list(p))
+    d.mass = mass
+    d.ipos = [0, 0, 0]
+    d.inertia = [i_tilt, i_tilt, i_spin]
+    d.explicitinertial = True
+    for ax_name, axis in (("x", [1, 0, 0]), ("y", [0, 1, 0])):
+        d.add_joint(name=f"flap{i}_{ax_name}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis,
+                    stiffness=r.hub_stiffness_Nm_per_rad, damping=r.hub_spring_damping_Nms_per_rad)
+    d.add_site(name=f"hub{i}", size=[0.005, 0, 0])
+    aero = _aero_default(s)
+    D = r.hub_damping_Nms_per_rad
+    for k, ax_name in enumerate(("x", "y")):
+        a = s.add_actuator(name=f"tilt{i}_{ax_name}", target=f"hub{i}", default=aero)
+        a.gear = [0, 0, 0] + [1.0 if j == k else 0.0 for j in range(3)]
+        a.gainprm[0] = D
+        a.biasprm[2] = -D
 
 
 def _aero_default(s: mujoco.MjSpec):

@@ -96,9 +96,20 @@ class RotorSpec:
     torque_to_thrust_m: float  # rotor drag torque per unit thrust, Q/T
     axial_damping_N_per_mps: float  # dT/dw: thrust lost per m/s of axial (climb) airspeed
     hforce_N_per_mps: float  # in-plane H-force per m/s of in-plane airspeed (flapping)
-    flap_arm_m: float  # flapping moment per unit H-force (tilted thrust + hub stiffness)
+    flap_arm_m: float  # flapping moment per unit H-force (hub spring moment / thrust-tilt H-force)
     lag_s: tuple  # per rotor: servo (variable pitch) or motor (variable RPM) first-order time constant, s
     delay_s: tuple  # per rotor: transport delay from flight-software command to rotor, s
+    # blade-element data for the theory derivatives (``rotorlab.vehicles.rotor_theory``); 0 = not given
+    blades: int = 2
+    solidity: float = 0.0
+    lift_slope_per_rad: float = 0.0
+    profile_drag_coefficient: float = 0.0
+    lock_number: float = 0.0
+    # hingeless hub: the disc tilts against the hub spring (stiffness, damping) and its tilt is damped by the air;
+    # 0 stiffness = no flapping element (rigid propeller)
+    hub_stiffness_Nm_per_rad: float = 0.0
+    hub_spring_damping_Nms_per_rad: float = 0.0
+    hub_damping_Nms_per_rad: float = 0.0
     # variable pitch
     thrust_slope_N_per_rad: float = 0.0
     blade_pitch_per_pct_rad: float = 0.0
@@ -333,6 +344,14 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         flap_arm_m=r.num("flap_arm_m", lo=0.0),
         lag_s=_per_rotor(r, "lag_s", lo_open=True),
         delay_s=_per_rotor(r, "delay_s", lo_open=False),
+        blades=int(r.num("blades", 2, lo=2)),
+        solidity=r.num("solidity", 0.0, lo=0.0, hi=1.0),
+        lift_slope_per_rad=r.num("lift_slope_per_rad", 0.0, lo=0.0),
+        profile_drag_coefficient=r.num("profile_drag_coefficient", 0.0, lo=0.0),
+        lock_number=r.num("lock_number", 0.0, lo=0.0),
+        hub_stiffness_Nm_per_rad=r.num("hub_stiffness_Nm_per_rad", 0.0, lo=0.0),
+        hub_spring_damping_Nms_per_rad=r.num("hub_spring_damping_Nms_per_rad", 0.0, lo=0.0),
+        hub_damping_Nms_per_rad=r.num("hub_damping_Nms_per_rad", 0.0, lo=0.0),
     )
     if kind == "variable-pitch":
         rotor = RotorSpec(**common, thrust_slope_N_per_rad=r.num("thrust_slope_N_per_rad", lo=0.0, lo_open=True),
