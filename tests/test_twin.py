@@ -1,6 +1,7 @@
 """The digital twins against their ground truth: published identified models, the TUHH per-axis model and
 thrust data, the designed delay and IMU-mount resonance."""
 
+import dataclasses
 import math
 
 import control as ct
@@ -12,6 +13,7 @@ from rotorlab import lti
 from rotorlab.sim.linearize import linearize
 from rotorlab.sim.simulator import Simulator
 from rotorlab.vehicles import load_vehicle
+from rotorlab.vehicles.calibrate import closed_form
 
 W_BAND = np.logspace(0.0, np.log10(15.0), 30)
 
@@ -24,6 +26,62 @@ def test_pitch_rig_matches_published_model(vehicle):
     ratio = lti.freqresp(G, W_BAND)[:, 0, 0] / lti.freqresp(ct.tf(pm.num, pm.den), W_BAND)[:, 0, 0]
     assert np.max(np.abs(20 * np.log10(np.abs(ratio)))) < 1.0
     assert np.max(np.abs(np.degrees(np.angle(ratio)))) < 5.0
+
+
+def _band_error(G, pm, w):
+    ratio = lti.freqresp(G, w)[:, 0, 0] / lti.freqresp(ct.tf(pm.num, pm.den), w)[:, 0, 0]
+    return np.max(np.abs(20 * np.log10(np.abs(ratio)))), np.max(np.abs(np.degrees(np.angle(ratio))))
+
+
+def test_free_flight_matches_published_flight_model():
+    """The rig calibration carries over: the twin's true free-flight pitch response is the published in-flight
+    PBSID model within 3 dB and 20 deg over 2-15 rad/s (where the PRBS data are)."""
+    v = load_vehicle("anteos-p2a2")
+    G = linearize("free-flight", v, "pitch", "gyro_pitch", delay=False)
+    db, deg = _band_error(G, v.published["flight"], np.logspace(np.log10(2.0), np.log10(15.0), 30))
+    assert db < 3.0 and deg < 20.0
+
+
+@pytest.mark.parametrize("vehicle", ["anteos-p2a2", "anteos-a2minib"])
+def test_hover_pitch_speed_mode_is_slow(vehicle):
+    """The hover pitch/speed oscillation (rotor speed derivatives against rotor + hub damping) doubles in no
+    less than 5 s, or is stable."""
+    G = linearize("free-flight", vehicle, "pitch", "gyro_pitch", delay=False)
+    ev = np.log(np.linalg.eigvals(np.asarray(G.A)).astype(complex)) / G.dt
+    ev = ev[np.abs(ev) > 1e-6]  # position and heading are neutral
+    growth = ev.real.max()
+    assert growth <= 0.0 or math.log(2) / growth >= 5.0
+
+
+@pytest.mark.parametrize("vehicle", ["anteos-p2a2", "anteos-a2minib"])
+def test_rig_bearing_shapes_nothing(vehicle):
+    """Rig independence: without the bearing's damping the 3-15 rad/s response moves by less than 1 dB."""
+    v = load_vehicle(vehicle)
+    rig = dataclasses.replace(v.rigs["pitch"], bearing_damping_Nms_per_rad=0.0)
+    free = dataclasses.replace(v, rigs={**v.rigs, "pitch": rig})
+    w = np.logspace(np.log10(3.0), np.log10(15.0), 25)
+    a = lti.freqresp(linearize("pitch-rig", v, "pitch", "gyro_pitch", delay=False), w)[:, 0, 0]
+    b = lti.freqresp(linearize("pitch-rig", free, "pitch", "gyro_pitch", delay=False), w)[:, 0, 0]
+    assert np.max(np.abs(20 * np.log10(np.abs(a / b)))) < 1.0
+    assert np.max(np.abs(np.degrees(np.angle(a / b)))) < 5.0
+
+
+@pytest.mark.parametrize("vehicle", ["anteos-p2a2", "anteos-a2minib"])
+def test_calibration_closed_form_is_exact_for_massless_discs(vehicle):
+    """The closed form solves the massless-disc structure to the published coefficients (analytic check)."""
+    v = load_vehicle(vehicle)
+    pm = v.published["testbed"]
+    slope, k, c, d = closed_form(v)  # per rotor
+    n = v.n_rotors
+    K, C, D = n * k, n * c, n * d
+    J = v.inertia_kgm2[1] + v.rigs["pitch"].ring_inertia_kgm2
+    d_a = 2 * v.arm_m**2 * v.rotor.axial_damping_N_per_mps
+    m_u = math.degrees(v.arm_m * slope * v.rotor.blade_pitch_per_pct_rad)
+    G = ct.tf([m_u * (D + C), m_u * K], [J * (D + C), J * K + d_a * (D + C) + D * C, (d_a + D) * K])
+    w = np.logspace(-1, 2, 20)
+    np.testing.assert_allclose(lti.freqresp(G, w)[:, 0, 0], lti.freqresp(ct.tf(pm.num, pm.den), w)[:, 0, 0],
+                               rtol=1e-9)
+    assert min(k, c, d) > 0
 
 
 @pytest.mark.parametrize("vehicle", ["anteos-p2a2", "anteos-a2minib"])
