@@ -21,25 +21,30 @@ OUT = Path(__file__).resolve().parent
 
 
 def calibration():
+    """Rig (test-bed) and free-flight responses of the twins against the published identified models: the
+    vehicle's rotors own the dynamics, so the rig calibration carries over to flight."""
     w = np.logspace(-0.5, 2, 300)
     fig, ax = plt.subplots(2, 2, figsize=(10, 6), sharex=True)
     for col, name in enumerate(("anteos-p2a2", "anteos-a2minib")):
         v = load_vehicle(name)
-        pm = v.published["testbed"]
-        P = lti.freqresp(ct.tf(pm.num, pm.den), w)[:, 0, 0]
-        G = lti.freqresp(linearize("pitch-rig", name, "pitch", "gyro_pitch", delay=False), w)[:, 0, 0]
-        ax[0, col].semilogx(w, 20 * np.log10(np.abs(P)), "k--", label="published identified model")
-        ax[0, col].semilogx(w, 20 * np.log10(np.abs(G)), "C0", label="twin (MuJoCo linearisation)")
-        ax[1, col].semilogx(w, np.degrees(np.unwrap(np.angle(P))), "k--")
-        ax[1, col].semilogx(w, np.degrees(np.unwrap(np.angle(G))), "C0")
+        curves = [(v.published["testbed"], "k--", "published test-bed model"),
+                  (linearize("pitch-rig", name, "pitch", "gyro_pitch", delay=False), "C0", "twin on the pitch rig"),
+                  (linearize("free-flight", name, "pitch", "gyro_pitch", delay=False), "C1", "twin in free flight")]
+        if "flight" in v.published:
+            curves.insert(1, (v.published["flight"], "k:", "published in-flight model"))
+        for sys, style, label in curves:
+            G = lti.freqresp(ct.tf(sys.num, sys.den) if hasattr(sys, "source") else sys, w)[:, 0, 0]
+            ax[0, col].semilogx(w, 20 * np.log10(np.abs(G)), style, label=label)
+            ax[1, col].semilogx(w, np.degrees(np.unwrap(np.angle(G))), style)
         for a in ax[:, col]:
             a.axvspan(1, 15, color="0.9", zorder=0)
             a.grid(True, which="both", alpha=0.3)
-        ax[0, col].set_title(f"{name}: pitch rig q/u, delay removed")
+        ax[0, col].set_title(f"{name}: pitch q/u, delay removed")
+        ax[0, col].legend(loc="lower left", fontsize=8)
         ax[1, col].set_xlabel("frequency [rad/s]")
+        ax[1, col].set_ylim(-200, 100)
     ax[0, 0].set_ylabel("|q/u| [dB, (deg/s)/%]")
     ax[1, 0].set_ylabel("phase [deg]")
-    ax[0, 0].legend(loc="lower left")
     fig.tight_layout()
     fig.savefig(OUT / "calibration.png", dpi=110)
 
@@ -82,8 +87,11 @@ def rope_pull():
     fig.savefig(OUT / "rope_pull.png", dpi=110)
 
 
+FIGURES = {"calibration": calibration, "published_loop": published_loop, "rope_pull": rope_pull}
+
 if __name__ == "__main__":
-    calibration()
-    published_loop()
-    rope_pull()
+    import sys
+
+    for name in sys.argv[1:] or FIGURES:  # a subset by name, e.g. ``python docs/make_figures.py calibration``
+        FIGURES[name]()
     print("wrote", *sorted(p.name for p in OUT.glob("*.png")))

@@ -150,8 +150,10 @@ def _named(sys: ct.StateSpace, inputs, outputs) -> ct.StateSpace:
     return sys
 
 
-def truth_model(vehicle: str, dt: float = CONTROL_DT_S, slow_rad_s: float = 0.05) -> ct.StateSpace:
-    """The twin's true pitch-rate model on the rig, delay removed, resampled to ``dt`` (s).
+def truth_model(vehicle: str, dt: float = CONTROL_DT_S, slow_rad_s: float = 0.05,
+                scene: str = "pitch-rig") -> ct.StateSpace:
+    """The twin's true pitch-rate model on the rig (or in ``scene``, e.g. ``free-flight``), delay removed,
+    resampled to ``dt`` (s).
 
     The 1 ms linearisation is converted with the exact ZOH inverse, made minimal, then re-discretised (both
     conversions exact for a ZOH-held input). Pole/zero pairs both slower than ``slow_rad_s`` (rad/s) are
@@ -159,7 +161,7 @@ def truth_model(vehicle: str, dt: float = CONTROL_DT_S, slow_rad_s: float = 0.05
     cancels, but finite differences leave them a hair apart; left in, a pole on the unit circle decides every
     nu-gap through the winding-number condition alone, and a one-minute record cannot see it anyway.
     """
-    Gc = ct.minreal(d2c_zoh(linearize("pitch-rig", vehicle, "pitch", "gyro_pitch", delay=False)), 1e-7,
+    Gc = ct.minreal(d2c_zoh(linearize(scene, vehicle, "pitch", "gyro_pitch", delay=False)), 1e-7,
                     verbose=False)
     poles, zeros = list(np.linalg.eigvals(np.asarray(Gc.A, float))), list(ct.zeros(Gc))
     dropped = 0

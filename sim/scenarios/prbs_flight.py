@@ -1,49 +1,80 @@
-"""``prbs-flight``: in-flight identification data: hover at 5 m with mean wind and turbulence, position hold
-active, PRBS on the pitch command (reference 000, in-flight PRBS experiments; the attitude loop stays closed so
-the flight is safe, the PRBS enters inside the inner PID before its saturation).
+"""``prbs-flight``: the published in-flight identification experiment (reference 000, 001): hover at 5 m with
+mean wind and turbulence, PRBS on the pitch command.
+
+``protocol = "quasi-open-loop"`` (default) is the paper's: the nominal attitude and position controllers are off
+on the excited axis and only the +-20 deg attitude supervisor acts ("more invasive during in-flight
+identification ... in presence of wind disturbances"); the input is the same three concatenated PRBS segments
+at +-7/9/11 % as the test-bed campaign (:func:`rotorlab.sim.scenarios.prbs.excitation`, holds designed for the
+vehicle's band). The paper's vehicle was held in altitude and heading by its pilot: here an altitude hold and the
+roll and heading loops stay closed, which leaves the pitch/speed dynamics free, as in the paper.
+
+``protocol = "position-hold"`` is the safer variant: cascade and position hold closed, the same PRBS added to the
+pitch command inside the inner PID (closed-loop data: the identified model is biased by the feedback).
+
+The log holds ``u_lon`` (PRBS plus supervisor), the supervisor's share ``sup_lon`` and the PRBS alone ``u_exc``.
 
 Options
 -------
-``target`` : str          ``command`` (default, PRBS on u_lon in %) or ``setpoint`` (on theta_ref in deg)
-``amplitude`` : float     default 7 % (command) or 3 deg (set-point)
-``hold_range_s`` : list   level-hold range, s (default [0.1, 0.2])
-``wind_mps`` : float      mean wind, headwind (default 2.5)
+``protocol`` : str        ``quasi-open-loop`` (default) or ``position-hold``
+``segment_s``, ``holds``, ``amplitudes_pct``: the campaign, as in ``prbs`` (default [7, 9, 11] %, designed holds)
+``wind_mps`` : float      mean wind, headwind (default 2.5, the published flight test's mean wind)
 ``turbulence`` : bool     Dryden turbulence on (default True)
 """
 
 from __future__ import annotations
 
+import dataclasses
+
+import numpy as np
+
+from rotorlab.errors import ConfigError
 from rotorlab.scenes import HOVER_HEIGHT_M
 from rotorlab.sim.disturbances.mean_wind import MeanWind
 from rotorlab.sim.disturbances.dryden_wind import DrydenWind
-from rotorlab.sim.scenarios import Context, Setup, _metrics
-from rotorlab.sim.scenarios.prbs_closed import signal
+from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
+from rotorlab.sim.scenarios.prbs import SUPERVISOR_LIMIT_DEG, _exc_logger, excitation
 
 NAME = "prbs-flight"
-DESCRIPTION = "PRBS on the pitch command in hover with wind and position hold"
+DESCRIPTION = "in-flight PRBS campaign in hover with wind: quasi-open-loop with the supervisor (or position hold)"
 SCENES = ("free-flight",)
-DURATION_S = 60.0
-DEFAULTS = {"target": "command", "amplitude": None, "hold_range_s": [0.1, 0.2], "wind_mps": 2.5, "turbulence": True}
+DURATION_S = 90.0
+PROTOCOLS = ("quasi-open-loop", "position-hold")
+DEFAULTS = {"protocol": "quasi-open-loop", "segment_s": None, "holds": None, "amplitudes_pct": [7.0, 9.0, 11.0],
+            "wind_mps": 2.5, "turbulence": True}
+CAMPAIGN_KEYS = ("segment_s", "holds", "amplitudes_pct")
 
 
 def setup(ctx: Context) -> Setup:
-    o = {**DEFAULTS, **ctx.options}
-    target, amp, u = signal(ctx, DEFAULTS, {"setpoint": "theta_ref", "command": "u_lon"},
-                            {"setpoint": 3.0, "command": 7.0})
-    name = "theta_ref" if target == "setpoint" else "u_lon"
+    o = merged_options(ctx, DEFAULTS)
+    if o["protocol"] not in PROTOCOLS:
+        raise ConfigError(field="options.protocol", expected=f"one of {list(PROTOCOLS)}", got=o["protocol"])
+    u, segments = excitation(dataclasses.replace(ctx, options={k: o[k] for k in CAMPAIGN_KEYS}))
     dist = []
     if o["wind_mps"]:
         dist.append(MeanWind(o["wind_mps"]))
         if o["turbulence"]:
             dist.append(DrydenWind(o["wind_mps"], HOVER_HEIGHT_M, ctx.duration_s))
-    return Setup(mode="position", excitation={name: u}, disturbances=dist, notes={"target": name, "amplitude": amp})
+    notes = {"protocol": o["protocol"], "segments": segments, "axis": "pitch"}
+    extra = {"sup_lon": "%", "sup_lat": "%", "u_exc": "%"}
+    if o["protocol"] == "position-hold":
+        return Setup(mode="position", excitation={"u_lon": u}, disturbances=dist, extra_columns={"u_exc": "%"},
+                     on_tick=_exc_logger(u), notes=notes)
+    # the pilot's altitude hold: a z set-point latched at the first tick engages the altitude loop
+    return Setup(mode="open-loop", open_loop_axes=("pitch",), reference=lambda t: {"z_ref": None},
+                 excitation={"u_lon": u}, disturbances=dist, extra_columns=extra, on_tick=_exc_logger(u), notes=notes)
 
 
 def metrics(log, ctx: Context, setup: Setup) -> dict:
     m = _metrics.window(log, 0.0)
-    pos = ((log["x"] - log["x_ref"]) ** 2 + (log["y"] - log["y_ref"]) ** 2) ** 0.5
-    return _metrics.clean({
-        "max_abs_pitch_deg": float(abs(log["theta"]).max()) if m.any() else None,
-        "position_error_max_m": float(pos.max()) if m.any() else None,
+    th = log["theta"]
+    pos = ((log["x"] - log["x"][0]) ** 2 + (log["y"] - log["y"][0]) ** 2) ** 0.5 if m.any() else np.zeros(0)
+    out = {
+        "protocol": setup.notes["protocol"],
+        "max_abs_pitch_deg": float(np.abs(th).max()) if m.any() else None,
+        "position_drift_max_m": float(pos.max()) if m.any() else None,
         "control": _metrics.control(log, "u_lon", setup.u_limit_pct or ctx.vehicle.command_limit_pct),
-    })
+    }
+    if setup.notes["protocol"] == "quasi-open-loop":
+        out["supervisor_limit_deg"] = SUPERVISOR_LIMIT_DEG
+        out["supervisor_active_pct"] = float(100.0 * np.mean(log["sup_lon"] != 0.0)) if m.any() else None
+    return _metrics.clean(out)

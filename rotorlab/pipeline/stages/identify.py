@@ -5,14 +5,16 @@ from __future__ import annotations
 
 import math
 
+import control as ct
 import numpy as np
 
 from rotorlab.gains import load_gains
-from rotorlab.ident import (estimate_delay, hinf_match, kung, lms_batch, nugap, oe_fit, oe_fit_closed_loop, pbsid,
-                            rate_tf_structure, select_order)
+from rotorlab.ident import (chordal_distance, estimate_delay, hinf_match, kung, lms_batch, nugap, oe_fit,
+                            oe_fit_closed_loop, pbsid, rate_tf_structure, select_order)
 from rotorlab.ident.metrics import simulate, vaf
 from rotorlab.ident.modelio import save_model
 from rotorlab.ident.structures import tuhh_axis_structure
+from rotorlab.lti import d2c_zoh
 from rotorlab.pipeline.models import discrete_model, zoh_invertible
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
 from rotorlab.pipeline.settings import DT_S
@@ -26,6 +28,9 @@ __all__ = ["STAGE", "CAMPAIGN_RUNS", "MAX_DELAY_SAMPLES"]
 CAMPAIGN_RUNS = ("id", "cv", "val", "flight")
 MAX_DELAY_SAMPLES = 8  # delay search range: 0.16 s, well above the published 0.06 s
 PUBLISHED_NUGAP_TESTBED_FLIGHT = 0.0741  # ref. 000, between the test-bed and in-flight PBSID models
+# ref. 000/001: the in-flight PBSID model is second order, identified with past = future = 5
+FLIGHT_PBSID = {"order": 2, "past": 5, "future": 5}
+CHORDAL_BAND_RAD_S = (2.0, 20.0)  # where the flight PRBS has its power (and above the slow pitch/speed mode)
 
 
 def _vaf_of(model, u, y) -> float:
@@ -38,6 +43,17 @@ def _tuhh_structure(axis: str = "pitch"):
     pair gets +-b/2: :func:`rotorlab.tune.loopshaping.tuhh_torque_gain`, 1.94 N m for pitch), so the fitted
     ``J`` is the axis inertia in kg m^2."""
     return tuhh_axis_structure(axis, outputs=("rate",), K=tuhh_torque_gain(axis) * (180.0 / math.pi) / 100.0)
+
+
+def _tf_text(G) -> str:
+    """A discrete model as its continuous (ZOH-inverse) zeros, poles and high-frequency gain, for the report."""
+    Gc = d2c_zoh(G)
+    z, p = ct.zeros(Gc), ct.poles(Gc)
+
+    def fmt(v):
+        return ", ".join(f"{x.real:.3g}{x.imag:+.3g}j" if abs(x.imag) > 1e-9 else f"{x.real:.3g}"
+                         for x in sorted(v, key=lambda x: (abs(x), x.imag)))
+    return f"zeros [{fmt(z)}], poles [{fmt(p)}], DC gain {float(np.real(ct.dcgain(Gc))):.4g} (deg/s)/%"
 
 
 def run(ctx: StageContext) -> dict:
@@ -118,12 +134,23 @@ def run(ctx: StageContext) -> dict:
     save_model(ctx.work / "models" / "truth.json", truth, input=["u_lon"], output=["q"])
     # in-flight model and the test-bed vs flight nu-gap (published 0.0741 between the PBSID models)
     if "flight" in logs:
-        uf, yf = logs["flight"]["u_lon"], logs["flight"]["q"]
-        st = models["pbsid"].settings
-        mf = pbsid(uf, yf, st["order"], st["past"], st.get("future"), dt=DT_S, delay=d)
+        fl = logs["flight"]
+        uf, yf = fl["u_lon"], fl["q"]
+        mf = pbsid(uf, yf, FLIGHT_PBSID["order"], FLIGHT_PBSID["past"], FLIGHT_PBSID["future"], dt=DT_S, delay=d)
         save_model(ctx.work / "models" / "pbsid-flight.json", mf, input=["u_lon"], output=["q"])
-        res["flight"] = {"order": int(mf.order), "nugap_testbed_flight": float(nugap(models["pbsid"].sys, mf.sys)),
-                         "nugap_truth": float(nugap(mf.sys, truth)),
+        truth_flight = truth_model(ctx.vehicle, DT_S, scene="free-flight")
+        save_model(ctx.work / "models" / "truth-flight.json", truth_flight, input=["u_lon"], output=["q"])
+        w = np.logspace(np.log10(CHORDAL_BAND_RAD_S[0]), np.log10(CHORDAL_BAND_RAD_S[1]), 200)
+        tb = models["pbsid"].sys
+        res["flight"] = {"order": int(mf.order), "settings": dict(FLIGHT_PBSID),
+                         "nugap_testbed_flight": float(nugap(tb, mf.sys)),
+                         "chordal_testbed_flight_max": float(np.max(chordal_distance(tb, mf.sys, w))),
+                         "chordal_band_rad_s": list(CHORDAL_BAND_RAD_S),
+                         "nugap_truth": float(nugap(mf.sys, truth_flight)),
+                         "nugap_truth_rig_flight": float(nugap(truth, truth_flight)),
+                         "truth_flight": _tf_text(truth_flight),
+                         "supervisor_active_pct": float(100.0 * np.mean(fl["sup_lon"] != 0.0))
+                         if "sup_lon" in fl else None,
                          "published_nugap": PUBLISHED_NUGAP_TESTBED_FLIGHT}
     res["nominal"] = "oe-closed-loop" if closed else "pbsid"
     res["truth_order"] = int(truth.nstates)

@@ -432,8 +432,17 @@ def _markdown(s: dict) -> str:
         L += ["", f"Published best settings: PI-MOESP {pub['moesp_best']}; PBSID {pub['pbsid_best']}."]
     if s["flight"]:
         f = s["flight"]
-        L += ["", f"Test-bed vs in-flight PBSID model: nu-gap **{f['nugap_testbed_flight']:.4f}** "
-                  f"(published {f['published_nugap']}); flight model to truth (rig) {f['nugap_truth']:.4f}."]
+        st = f.get("settings", {})
+        band = f.get("chordal_band_rad_s", [2.0, 20.0])
+        L += ["", f"In-flight PBSID model (n = {st.get('order', f['order'])}, p = {st.get('past', '?')}, "
+                  f"f = {st.get('future', '?')}, the published settings) from the `prbs-flight` campaign"
+                  + (f" (supervisor active {f['supervisor_active_pct']:.1f} % of the time)"
+                     if f.get("supervisor_active_pct") is not None else "") + ".",
+              f"Test-bed vs in-flight PBSID model: nu-gap **{f['nugap_testbed_flight']:.4f}** "
+              f"(published {f['published_nugap']}), chordal distance over {band[0]:g}-{band[1]:g} rad/s at most "
+              f"{f.get('chordal_testbed_flight_max', float('nan')):.4f}; flight model to the twin's true flight "
+              f"model {f['nugap_truth']:.4f}; true rig vs true flight {f.get('nugap_truth_rig_flight', float('nan')):.4f}.",
+              f"Twin's true flight model (delay removed): {f.get('truth_flight', 'n/a')}."]
     for k in ("bode", "poles"):
         if k in s["figures"]:
             L += ["", f"![{k}]({s['figures'][k]})"]
