@@ -107,3 +107,15 @@ def test_hub_element_moments(vehicle):
                                                                 - r.hub_spring_damping_Nms_per_rad * 0.1, rel=1e-9)
     a = m.actuator(f"{PREFIX}tilt1_y").id
     assert d.actuator_force[a] == pytest.approx(-r.hub_damping_Nms_per_rad * 0.1, rel=1e-9)
+
+
+@pytest.mark.parametrize("key, value", [("blades", 2.5), ("solidity", 0.0), ("lock_number", 0.0)])
+def test_hub_without_blade_data_is_a_config_error(key, value):
+    from rotorlab.config import read_toml
+    from rotorlab.errors import ConfigError
+    from rotorlab.vehicles import parse_vehicle, vehicle_path
+
+    data = read_toml(vehicle_path("anteos-p2a2"), "vehicle")
+    data = {**data, "rotor": {**data["rotor"], key: value}}
+    with pytest.raises(ConfigError, match=f"rotor.{key}"):
+        parse_vehicle(data, "bad.toml")

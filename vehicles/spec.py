@@ -353,6 +353,13 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         hub_spring_damping_Nms_per_rad=r.num("hub_spring_damping_Nms_per_rad", 0.0, lo=0.0),
         hub_damping_Nms_per_rad=r.num("hub_damping_Nms_per_rad", 0.0, lo=0.0),
     )
+    if common["blades"] != r.num("blades", 2):
+        raise ConfigError(file=src, field="rotor.blades", expected="a whole number of blades >= 2", got=r.data["blades"])
+    if common["hub_stiffness_Nm_per_rad"] > 0:
+        for key in ("solidity", "lift_slope_per_rad", "lock_number"):
+            if not common[key] > 0:
+                raise ConfigError("a hingeless hub needs the blade data its disc inertia comes from", file=src,
+                                  field=f"rotor.{key}", expected="a value > 0", got=r.data.get(key))
     if kind == "variable-pitch":
         rotor = RotorSpec(**common, thrust_slope_N_per_rad=r.num("thrust_slope_N_per_rad", lo=0.0, lo_open=True),
                           blade_pitch_per_pct_rad=r.num("blade_pitch_per_pct_rad", lo=0.0, lo_open=True),
