@@ -172,7 +172,8 @@ def truth_model(vehicle: str, dt: float = CONTROL_DT_S, slow_rad_s: float = 0.05
             zeros.remove(min(near, key=lambda z: abs(z - pz)))
             dropped += 1
     if dropped:
-        G = ct.zpk(zeros, poles, 1.0)
+        # conjugate pairs give real polynomials; np.poly keeps a complex dtype, python-control refuses it
+        G = ct.tf(np.real(np.poly(zeros)), np.real(np.poly(poles)))
         w_ref = 1.0  # match the gain at 1 rad/s, well inside the identification band
         k = ct.evalfr(Gc, 1j * w_ref) / ct.evalfr(G, 1j * w_ref)
         Gc = ct.ss(ct.tf(np.real(k) * G.num[0][0], G.den[0][0]))

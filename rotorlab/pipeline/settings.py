@@ -13,7 +13,8 @@ __all__ = ["FORMAT_VERSION", "DT_S", "LEVELS", "PipelineError", "PipelineOptions
 
 FORMAT_VERSION = 1  # run-folder format: a folder written by another format is refused, never mixed
 
-# DT_S (imported): the published flight-software and identification sample time, 0.02 s
+# DT_S (imported): the published flight-software and identification sample time, 0.02 s. greybox_periods: PRBS
+# periods of ref. 002's three-axis campaign (the first settles, the rest are averaged: ten in the paper)
 
 _LEVELS = {
     # campaign lengths (s): identification PRBS (three concatenated segments), cross-validation,
@@ -21,17 +22,18 @@ _LEVELS = {
     "full": dict(id_s=120.0, cv_s=40.0, val_s=30.0, flight_s=90.0, moesp_orders=[2, 3, 4, 5, 6],
                  moesp_horizons=[20, 30, 40], pbsid_orders=[2, 3, 4, 5, 6], pbsid_horizons=[[11, 7], [15, 10],
                  [20, 10]], lms_orders=[2, 3, 4, 5], lms_taps=60, n_boot=1000, n_mc=1000, tune_starts=4,
-                 validation_s={}, record_runs=None, hinf_restarts=3, oe_restarts=2),
+                 validation_s={}, record_runs=None, hinf_restarts=3, oe_restarts=2, greybox_periods=11,
+                 greybox_restarts=1),
     # quick: half the campaign, the published best settings plus one alternative per grid, 50 bootstrap
     # replications, 100 Monte Carlo samples, one tuning start, shorter hover
     "quick": dict(id_s=60.0, cv_s=20.0, val_s=20.0, flight_s=60.0, moesp_orders=[2, 4], moesp_horizons=[40],
                   pbsid_orders=[2, 5], pbsid_horizons=[[11, 7]], lms_orders=[2, 4], lms_taps=50, n_boot=50,
                   n_mc=100, tune_starts=1, validation_s={"hover": 24.0}, record_runs=4, hinf_restarts=1,
-                  oe_restarts=0),
+                  oe_restarts=0, greybox_periods=11, greybox_restarts=0),
     "tiny": dict(id_s=24.0, cv_s=10.0, val_s=8.0, flight_s=20.0, moesp_orders=[4], moesp_horizons=[20],
                  pbsid_orders=[2], pbsid_horizons=[[11, 7]], lms_orders=[2], lms_taps=40, n_boot=8, n_mc=20,
                  tune_starts=1, validation_s={"setpoint": 7.0, "gust": 5.0, "rope-pull": 6.0, "hover": 8.0},
-                 record_runs=1, hinf_restarts=0, oe_restarts=0),
+                 record_runs=1, hinf_restarts=0, oe_restarts=0, greybox_periods=3, greybox_restarts=0),
 }
 LEVELS = tuple(_LEVELS)
 

@@ -3,10 +3,10 @@
 a new stage is one new module plus its entry in :data:`REGISTRY`."""
 
 from rotorlab.pipeline.runfolder import Stage
-from rotorlab.pipeline.stages import bootstrap, experiments, identify, report, tune, validate
+from rotorlab.pipeline.stages import bootstrap, experiments, greybox, identify, report, tune, validate
 
 __all__ = ["REGISTRY", "STAGES"]
 
 REGISTRY: dict[str, Stage] = {m.STAGE.name: m.STAGE
-                              for m in (experiments, identify, bootstrap, tune, validate, report)}
+                              for m in (experiments, identify, greybox, bootstrap, tune, validate, report)}
 STAGES = tuple(REGISTRY)

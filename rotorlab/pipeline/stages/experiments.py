@@ -11,7 +11,7 @@ from rotorlab.pipeline.settings import DT_S
 from rotorlab.sim.runner import run_scenario
 from rotorlab.vehicles import load_vehicle
 
-__all__ = ["STAGE", "experiment_plan", "run_experiment"]
+__all__ = ["STAGE", "experiment_plan", "run_experiment", "decimation"]
 
 ID_BAND_RAD_S = (4.0, 8.0)  # the published PRBS's target band (ref. 000)
 
@@ -51,13 +51,28 @@ def run_experiment(task: dict) -> dict:
             "stopped": r.stopped, "kind": task["scenario"], "scene": r.info["scene"], "seed": task["seed"]}
 
 
+def decimation(vehicle: str) -> int:
+    """Flight-software ticks per identification sample (``DT_S``): 1 for the ANTEOS twins, 5 for the TUHH twin
+    whose attitude loop runs at 250 Hz."""
+    k = DT_S / load_vehicle(vehicle).control_dt_s
+    if abs(k - round(k)) > 1e-9 or round(k) < 1:
+        raise ValueError(f"the identification sample time {DT_S} s is not a whole number of {vehicle}'s ticks")
+    return int(round(k))
+
+
 def run(ctx: StageContext) -> dict:
     plan = experiment_plan(ctx.vehicle, ctx.settings, ctx.seed)
     runs = ctx.executor.map(run_experiment, plan, desc="experiments", progress=ctx.opts.progress)
     res = {"runs": {}}
+    k = decimation(ctx.vehicle)
     for r in runs:
-        write_log(ctx.work / f"{r['name']}.parquet", r["columns"], r["units"],
-                  {"kind": r["kind"], "scene": r["scene"], "seed": r["seed"], "stopped": r["stopped"]})
+        meta = {"kind": r["kind"], "scene": r["scene"], "seed": r["seed"], "stopped": r["stopped"]}
+        if k > 1:
+            # the black-box methods and the bootstrap work at the published 50 Hz: every k-th sample of the
+            # flight computer's log; the closed-loop grey-box fit needs the loop's own rate (``{name}-full``)
+            write_log(ctx.work / f"{r['name']}-full.parquet", r["columns"], r["units"], meta)
+            r["columns"] = {n: v[::k] for n, v in r["columns"].items()}
+        write_log(ctx.work / f"{r['name']}.parquet", r["columns"], r["units"], meta)
         c = r["columns"]
         res["runs"][r["name"]] = {"kind": r["kind"], "scene": r["scene"], "seed": r["seed"], "stopped": r["stopped"],
                                   "samples": int(len(c["t"])), "duration_s": float(len(c["t"]) * DT_S),

@@ -16,7 +16,7 @@ from rotorlab.ident.modelio import save_model
 from rotorlab.ident.structures import tuhh_axis_structure
 from rotorlab.lti import d2c_zoh
 from rotorlab.pipeline.models import discrete_model, zoh_invertible
-from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
+from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable, read_log
 from rotorlab.pipeline.settings import DT_S
 from rotorlab.sim.linearize import truth_model
 from rotorlab.tune.cascade import tuhh_loop_controller
@@ -129,8 +129,12 @@ def run(ctx: StageContext) -> dict:
             greybox(name, hinf_match(models[source], rate_tf_structure(delay_s=d * DT_S),
                                      restarts=s["hinf_restarts"], rng=ctx.seed), black_box=source)
         elif name == "oe-closed-loop":
-            K = tuhh_loop_controller(load_gains(gains_path(ctx.vehicle, "standard"))["pitch"], DT_S)
-            greybox(name, oe_fit_closed_loop(_tuhh_structure("pitch"), K, logs["id"]["theta_ref"], y_id, DT_S,
+            # at the loop's own rate: the known controller is the flight software's cascade at the vehicle's tick
+            dt_v = load_vehicle(ctx.vehicle).control_dt_s
+            full = ctx.run.experiment_log_path("id-full")
+            lid = read_log(full) if full.exists() else logs["id"]
+            K = tuhh_loop_controller(load_gains(gains_path(ctx.vehicle, "standard"))["pitch"], dt_v)
+            greybox(name, oe_fit_closed_loop(_tuhh_structure("pitch"), K, lid["theta_ref"], lid["q"], dt_v,
                                              restarts=s["oe_restarts"], rng=ctx.seed))
     res["skipped"] = skipped
     save_model(ctx.work / "models" / "truth.json", truth, input=["u_lon"], output=["q"])

@@ -23,6 +23,7 @@ from scipy.signal import welch
 from rotorlab import __version__, atomic
 from rotorlab.gains import save_gains
 from rotorlab.lti import d2c_zoh, freqresp
+from rotorlab.pipeline import tuhh_report
 from rotorlab.pipeline.runfolder import Stage, StageContext, read_log
 from rotorlab.pipeline.settings import DT_S
 from rotorlab.sim.log import RunLog
@@ -258,6 +259,8 @@ def write_report(ctx: StageContext) -> dict:
     sets = list(tune["gains"])
     tuned = "tuned" if "tuned" in sets else (next((s for s in sets if s.startswith("optimal")), None))
     validation = {sc: {s: flatten_metrics(m) for s, m in per.items()} for sc, per in val["validation"].items()}
+    tuhh_report.complete_validation(validation, val["validation"])
+    gb = ctx.run.result("greybox") if ctx.run.has("greybox") else {}
     summary = {
         "vehicle": ctx.vehicle, "seed": ctx.seed, "level": ctx.settings["level"], "rotorlab_version": __version__,
         "experiments": exp, "delay_samples": ident["delay_samples"],
@@ -273,7 +276,11 @@ def write_report(ctx: StageContext) -> dict:
                     **{f"validate.{k}": v for k, v in val.get("skipped", {}).items()},
                     **({"tune.tuning": tune["tuning"]["status"]} if "spec" not in tune["tuning"] else {})},
         "published": PUBLISHED.get(ctx.vehicle, {}),
+        "greybox_axes": gb.get("axes", {}),
     }
+    if gb.get("skipped"):
+        summary["skipped"]["greybox"] = gb["skipped"]
+    summary["design_claims"] = tuhh_report.design_claims(validation)
     summary["claims"] = claims(summary, tuned) if tuned else []
     fig_paths = {}
     for key, fn in (("spectrum", lambda: _fig_spectrum(ctx, figs)), ("bode", lambda: _fig_bode(ctx, figs, ident)),
@@ -397,7 +404,7 @@ def headline_rows(s) -> tuple[list, list]:
 def _headline(s) -> list[str]:
     tuned = s["compared_set"]
     if not tuned:
-        return ["No gain set other than the standard one to compare."]
+        return tuhh_report.headline(s, _table) or ["No gain set other than the standard one to compare."]
     lines = [f"**Does `{tuned}` beat `standard` on the twin?** Every gain set side by side (magnitudes; "
              f"change = ({tuned} - standard) / standard; the verdict says whether the change is an improvement).",
              ""]
@@ -422,7 +429,8 @@ def _markdown(s: dict) -> str:
     if "spectrum" in s["figures"]:
         L += ["", f"![PRBS spectrum]({s['figures']['spectrum']})"]
     L += ["", "## 2. Identification", "",
-          f"Estimated input delay: {s['delay_samples']} samples ({s['delay_samples'] * DT_S:.2f} s; published 0.06 s). "
+          f"Estimated input delay: {s['delay_samples']} samples ({s['delay_samples'] * DT_S:.2f} s; "
+          f"{tuhh_report.delay_note(s) if s.get('greybox_axes') else 'published 0.06 s'}). "
           "nu-gap is to the twin's true linearised model (rig, delay removed, resampled to 50 Hz).", ""]
     L += _table(["method", "order", "settings", "VAF cv [%]", "VAF val [%]", "nu-gap to truth"],
                 [[k, m["order"], _settings(m["settings"]), _f(m["vaf_cv"], "{:.2f}"), _f(m["vaf_val"], "{:.2f}"),
@@ -488,8 +496,9 @@ def _markdown(s: dict) -> str:
                   f"designed on the published axis model, Tustin at {1 / d['hinf_dt_s']:.0f} Hz) against the "
                   "standard cascade (50 Hz), both closed around the identified model. At the twin's 50 Hz the H-inf "
                   f"loop is {'stable' if d['hinf_stable_at_50hz'] else '**unstable**'} (the design has a lightly "
-                  "damped controller mode near 87 rad/s); it is not re-injected into the twin (its flight software "
-                  "runs the PID cascade).", ""]
+                  "damped controller mode near 87 rad/s), which is why the TUHH twin's attitude loop runs at 250 Hz "
+                  "(vehicle README); flown on the twin in place of the cascade, its experiments are in the headline "
+                  "and in section 5 (`design-step`, `input-disturbance`, `saturating-disturbance`).", ""]
         L += _table(["design", "rate [Hz]", "stable", "10 deg step rise [s]", "overshoot [%]", "peak deviation, 10 % input "
                      "disturbance [deg]", "peak command, 10 deg step [%]"],
                     [[n, d[n]["rate_hz"], d[n]["stable"], _f(d[n].get("rise_s"), "{:.3f}"), _f(d[n].get("overshoot_pct"), "{:.1f}"),
@@ -509,8 +518,9 @@ def _markdown(s: dict) -> str:
         if key in s["figures"]:
             L += ["", f"![{sc}]({s['figures'][key]})"]
         L += [""]
+    L += tuhh_report.section(s, _table)
     if s["skipped"]:
-        L += ["## Skipped", ""] + [f"- `{k}`: {v}" for k, v in s["skipped"].items()]
+        L += ["", "## Skipped", ""] + [f"- `{k}`: {v}" for k, v in s["skipped"].items()]
     if s.get("recordings"):
         L += ["", "## Recordings", "", "Open with `rerun FILE.rrd`: " +
               ", ".join(f"[{k}]({v})" for k, v in s["recordings"].items())]
@@ -560,5 +570,5 @@ def _html(md: str, title: str) -> str:
             f"<style>{style}</style></head><body>\n" + "\n".join(out) + "\n</body></html>\n")
 
 
-STAGE = Stage("report", upstream=("experiments", "identify", "bootstrap", "tune", "validate"),
+STAGE = Stage("report", upstream=("experiments", "identify", "greybox", "bootstrap", "tune", "validate"),
               settings=("record_runs",), run=write_report)

@@ -10,10 +10,17 @@ from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable, write_log
 from rotorlab.sim import scenarios
 from rotorlab.sim.runner import run_scenario
 
-__all__ = ["STAGE", "VALIDATION_SCENARIOS", "run_validation"]
+__all__ = ["STAGE", "VALIDATION_SCENARIOS", "DESIGN_EXPERIMENTS", "run_validation", "run_design_experiment"]
 
 VALIDATION_SCENARIOS = ("setpoint", "gust", "rope-pull", "hover")
 SEED_OFFSET = 1  # validation seeds are children of seed + 1: independent of the campaign's
+#: ref. 002's experiments with its designs flown in place of the cascade (rotorlab.designs) on the roll and
+#: pitch rigs: summary key -> (scenario, options, duration s)
+DESIGN_EXPERIMENTS = {
+    "design-step": ("setpoint", {"steps_deg": [10.0], "small_step_deg": 0.0, "hold_s": 3.0, "t0_s": 0.5}, 3.5),
+    "input-disturbance": ("input-disturbance", {"fraction": 0.1, "t0_s": 0.5}, 8.0),
+    "saturating-disturbance": ("input-disturbance", {"fraction": 0.3, "t0_s": 0.5}, 8.0),
+}
 
 
 def run_validation(task: dict) -> dict:
@@ -38,6 +45,33 @@ def run_validation(task: dict) -> dict:
             "columns": {k: r.log[k].copy() for k in r.log.columns}, "units": r.log.units}
 
 
+def run_design_experiment(task: dict) -> dict:
+    """One of ref. 002's experiments with one named design on one rig (picklable task). The set-point step's
+    metrics are kept per axis (``{axis}.rise_time_s``, ...) so the roll and pitch runs merge into one entry."""
+    from rotorlab.designs import design
+
+    scenario, options, duration = DESIGN_EXPERIMENTS[task["experiment"]]
+    r = run_scenario(scenario, task["vehicle"], scene=task["scene"], seed=task["seed"], duration_s=duration,
+                     options=options, controller=design(task["design"], task["vehicle"]))
+    m = jsonable(r.metrics)
+    if scenario == "setpoint":
+        st = (m.get("steps") or [{}])[0]
+        m = {m["axis"]: {k: st.get(k) for k in ("rise_time_s", "settling_time_s", "overshoot_pct")} |
+             {"control_peak": (st.get("control") or {}).get("peak")}}
+    return {"metrics": m, "stopped": r.stopped, "columns": {k: r.log[k].copy() for k in r.log.columns},
+            "units": r.log.units}
+
+
+def _design_tasks(ctx) -> list[dict]:
+    from rotorlab.designs import DESIGN_VEHICLES, DESIGNS
+
+    if ctx.vehicle not in DESIGN_VEHICLES:
+        return []
+    seeds = task_seeds(ctx.seed + SEED_OFFSET + 1, len(DESIGN_EXPERIMENTS))
+    return [{"experiment": ex, "design": d, "scene": sc, "vehicle": ctx.vehicle, "seed": seed}
+            for ex, seed in zip(DESIGN_EXPERIMENTS, seeds) for d in DESIGNS for sc in ("roll-rig", "pitch-rig")]
+
+
 def run(ctx: StageContext) -> dict:
     sets = ctx.run.gain_sets()
     seeds = task_seeds(ctx.seed + SEED_OFFSET, len(VALIDATION_SCENARIOS))
@@ -58,6 +92,19 @@ def run(ctx: StageContext) -> dict:
         res["validation"].setdefault(t["scenario"], {})[t["set"]] = {**r["metrics"], "stopped": r["stopped"]}
         write_log(ctx.work / "logs" / f"{t['scenario']}__{t['set']}.parquet", r["columns"], r["units"],
                   {"scenario": t["scenario"], "gains": t["set"], "seed": t["seed"], "scene": r["scene"]})
+    dtasks = _design_tasks(ctx)
+    if dtasks:
+        (ctx.work / "design_logs").mkdir()
+    # common random numbers again: every design sees the same seed per experiment
+    for t, r in zip(dtasks, ctx.executor.map(run_design_experiment, dtasks, desc="design experiments",
+                                             progress=ctx.opts.progress)):
+        entry = res["validation"].setdefault(t["experiment"], {}).setdefault(t["design"], {"stopped": None})
+        entry.update(r["metrics"])
+        if r["stopped"]:
+            entry["stopped"] = "; ".join(x for x in (entry["stopped"], f"{t['scene']}: {r['stopped']}") if x)
+        write_log(ctx.work / "design_logs" / f"{t['experiment']}__{t['design']}__{t['scene']}.parquet",
+                  r["columns"], r["units"], {"experiment": t["experiment"], "design": t["design"],
+                                             "seed": t["seed"], "scene": t["scene"]})
     return res
 
 
