@@ -54,9 +54,10 @@ def main():
     speed = raw_s / rest_s
     wind_cost = wind_s / rest_s - 1.0
     print(f"free flight, {DURATION_S:.0f} s simulated, medians of {REPEATS} interleaved repeats")
-    print(f"  raw mj_step (same model, same physics steps):             {raw_s:.3f} s CPU = {DURATION_S / raw_s:6.1f}x real time")
-    print(f"  closed loop 'rest' (build + flight software + IMU + log): {rest_s:.3f} s CPU = {DURATION_S / rest_s:6.1f}x real time")
-    print(f"  closed loop 'hover' (+ mean wind + Dryden):               {wind_s:.3f} s CPU = {DURATION_S / wind_s:6.1f}x real time")
+    for what, sec in (("raw mj_step (same model, same physics steps)", raw_s),
+                      ("closed loop 'rest' (build + flight software + IMU + log)", rest_s),
+                      ("closed loop 'hover' (+ mean wind + Dryden)", wind_s)):
+        print(f"  {what:57s} {sec:.3f} s CPU = {DURATION_S / sec:6.1f}x real time")
     print(f"  ratio closed-loop / raw speed: {speed:.2f} (target >= 0.80)")
     print(f"  wind + Dryden cost over the undisturbed run: {wind_cost:+.0%} (target <= +20 %)")
 

@@ -57,7 +57,8 @@ def body_wind(xmat, wind_world) -> np.ndarray:
 
 
 def diverged_reason(t: float, warning: str = "") -> str:
-    return f"MuJoCo warning {warning + ' ' if warning else ''}at t = {t:.3f} s (the simulation diverged: NaN/inf or huge state)"
+    name = f"{warning} " if warning else ""
+    return f"MuJoCo warning {name}at t = {t:.3f} s (the simulation diverged: NaN/inf or huge state)"
 
 
 def at_rig_stop(angle_deg, stop_deg: float):
@@ -246,7 +247,8 @@ class Simulator:
             # tilt from the body z axis: R[2, 2] = cos(tilt), compared as a cosine (no acos on the good path)
             if self._af_xmat[8] < self._cos_tilt_limit:
                 tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(self._af_xmat[8])))))
-                return f"tilt {tilt:.0f} deg beyond the divergence limit {FREE_FLIGHT_TILT_LIMIT_DEG:g} deg at t = {self.time:.3f} s"
+                return (f"tilt {tilt:.0f} deg beyond the divergence limit {FREE_FLIGHT_TILT_LIMIT_DEG:g} deg "
+                        f"at t = {self.time:.3f} s")
             if self._af_xpos[2] < self._floor_z:
                 return f"the vehicle hit the floor at t = {self.time:.3f} s"
         return None

@@ -43,7 +43,8 @@ def test_registry_holds_every_sensor_in_a_file_named_after_it():
     for info in pkgutil.iter_modules(sensors_pkg.__path__):
         mod = importlib.import_module(f"{sensors_pkg.__name__}.{info.name}")
         for obj in vars(mod).values():
-            if isinstance(obj, type) and issubclass(obj, Sensor) and obj is not Sensor and obj.__module__ == mod.__name__:
+            if (isinstance(obj, type) and issubclass(obj, Sensor) and obj is not Sensor
+                    and obj.__module__ == mod.__name__):
                 defined.add(obj)
                 snake = "".join(f"_{c.lower()}" if c.isupper() else c for c in obj.__name__).lstrip("_")
                 assert info.name == snake, (info.name, obj.__name__)

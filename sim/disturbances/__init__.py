@@ -23,5 +23,5 @@ DISTURBANCES = {cls.name: cls for cls in (MeanWind, DrydenWind, CosineGust, Reci
                                              InputDisturbanceStep)}
 
 __all__ = ["DISTURBANCES", "Disturbance", "WindDisturbance", "SampledWind", "MeanWind", "DrydenWind", "CosineGust",
-           "RecirculationMoment", "RopePull", "InputDisturbanceStep", "DrydenTurbulence", "dryden_psd_u", "dryden_psd_v", "dryden_psd_w",
-           "low_altitude_scales", "one_minus_cosine", "RecirculationTorque"]
+           "RecirculationMoment", "RopePull", "InputDisturbanceStep", "DrydenTurbulence", "dryden_psd_u",
+           "dryden_psd_v", "dryden_psd_w", "low_altitude_scales", "one_minus_cosine", "RecirculationTorque"]
