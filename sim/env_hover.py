@@ -1,6 +1,6 @@
 """``rotorlab/Hover-v0``: position hold in free flight as a Gymnasium env.
 
-One agent step = one 50 Hz flight-software tick on the same :class:`~rotorlab.sim.simulator.Simulator` as
+One agent step = one flight-software tick (the vehicle's rate: 50 Hz ANTEOS, 250 Hz TUHH) on the same :class:`~rotorlab.sim.simulator.Simulator` as
 headless runs (free-flight scene, hover keyframe at 5 m).
 
 Actions (float32 Box(-1, 1), shape (4,)), scaled to physical units (``info['action_physical']``)
@@ -13,7 +13,9 @@ Actions (float32 Box(-1, 1), shape (4,)), scaled to physical units (``info['acti
 ``control='attitude'``
     ``[collective %, roll set-point deg, pitch set-point deg, heading set-point deg]``: ``50 + 50 a`` %,
     ``a * max_tilt_deg`` and ``a * 180`` deg; the vehicle's attitude cascade (:class:`FlightSoftware`, its
-    ``gains``) closes the attitude loops.
+    ``gains``) closes the attitude loops, or the discrete controllers given as ``controller=`` (a
+    :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a controller file or a list; e.g.
+    ``rotorlab.designs.design('hinf-loopshaping', 'tuhh-quad')``) in its place on the commands they set.
 
 Out-of-range actions are clipped component-wise to [-1, 1] (``info['action_clipped']``); non-finite actions
 raise ``ValueError`` and leave the episode untouched.
@@ -70,9 +72,12 @@ class HoverEnv(RotorlabEnv):
     _episode_attrs = ("_k", "_target", "_fs", "_u", "_hover_col", "_meas")
 
     def __init__(self, vehicle="anteos-p2a2", *, control: str = "commands", gains=None, target_range_m: float = 1.0,
-                 max_tilt_deg: float = 30.0, **kwargs):
+                 max_tilt_deg: float = 30.0, controller=None, **kwargs):
         if control not in CONTROLS:
             raise UnknownNameError("hover control", control, CONTROLS)
+        if controller is not None and control != "attitude":
+            raise ConfigError("a controller closes the attitude loops", field="control", expected="'attitude'",
+                              got=control)
         if not target_range_m >= 0:
             raise ConfigError(field="target_range_m", expected="a half-width >= 0 m", got=target_range_m)
         if not 0 < max_tilt_deg < 80:
@@ -93,6 +98,10 @@ class HoverEnv(RotorlabEnv):
         self.gains = resolve_gains(v, gains)
         self._fs = FlightSoftware(self.gains, vehicle_mixer(v), dt=self.control_dt_s, mode="cascade",
                                   limits=v.commands)
+        if controller is not None:
+            from rotorlab.sim.runner import controller_plugins
+
+            self._fs.plugins.extend(controller_plugins(controller, self._fs))
         self._target = np.array([0.0, 0.0, -HOVER_HEIGHT_M])
         self._u = np.zeros(4)
 

@@ -1,6 +1,6 @@
 """``rotorlab/PitchRig-v0`` and ``rotorlab/RollRig-v0``: the 1-DoF gimbal test-bed as a Gymnasium env.
 
-One agent step = one 50 Hz flight-software tick (20 physics steps at 1 kHz) on the same
+One agent step = one flight-software tick (the vehicle's rate: 50 Hz ANTEOS, 250 Hz TUHH; physics at 1 kHz) on the same
 :class:`~rotorlab.sim.simulator.Simulator` as headless runs.
 
 Actions (float32 Box(-1, 1), shape (1,)), scaled to physical units (``info['action_physical']``)
@@ -12,6 +12,11 @@ Actions (float32 Box(-1, 1), shape (1,)), scaled to physical units (``info['acti
     The rate set-point: ``physical = a * rate_limit_dps`` deg/s (default: the vehicle's rate limit); the
     vehicle's inner PID (its ``gains`` set, :class:`~rotorlab.sim.control.pid.DiscretePID` with clamping
     anti-windup) closes the rate loop.
+``control='controller'``
+    A residual command on top of a discrete controller flown in place of the cascade (``controller=``: a
+    :class:`~rotorlab.sim.control.statespace.ControllerSpec` or a controller file that sets the axis command,
+    e.g. ``rotorlab.designs.design('hinf-loopshaping-aw', 'tuhh-quad', axes=('pitch',))``): the command is the
+    controller's output plus ``a * u_limit_pct``, saturated at the limit; ``a = 0`` flies the controller alone.
 
 Actions outside [-1, 1] are clipped component-wise (``info['action_clipped']`` says so); non-finite actions
 raise ``ValueError`` and leave the episode untouched. ``env.unwrapped.normalize_action(u)`` converts a
@@ -45,7 +50,7 @@ from rotorlab.sim.control.pid import DiscretePID
 from rotorlab.sim.env_base import RotorlabEnv, box, clip_obs
 from rotorlab.sim.runner import resolve_gains
 
-CONTROLS = ("command", "inner_loop")
+CONTROLS = ("command", "inner_loop", "controller")
 TASKS = ("tracking", "regulation")
 ANGLE_BOUND_DEG = 90.0
 RATE_BOUND_DPS = 1000.0
@@ -78,12 +83,15 @@ class RigEnv(RotorlabEnv):
 
     def __init__(self, axis: str = "pitch", vehicle="anteos-p2a2", *, control: str = "command", gains=None,
                  task: str = "tracking", setpoint_max_deg: float = 10.0, setpoint_period_s: float = 2.0,
-                 rate_limit_dps: float | None = None, **kwargs):
+                 rate_limit_dps: float | None = None, controller=None, **kwargs):
         if axis not in _AXIS:
             raise UnknownNameError("rig axis", axis, _AXIS)
         if control not in CONTROLS:
             raise UnknownNameError("rig control", control, CONTROLS)
         self._check_task(task)
+        if (controller is not None) != (control == "controller"):
+            raise ConfigError("control='controller' flies the controller given as controller=", field="controller",
+                              expected="a controller with control='controller' and none otherwise", got=controller)
         if not 0 < setpoint_max_deg < ANGLE_BOUND_DEG:
             raise ConfigError(field="setpoint_max_deg", expected=f"0 < value < {ANGLE_BOUND_DEG}", got=setpoint_max_deg)
         if not setpoint_period_s > 0:
@@ -97,7 +105,8 @@ class RigEnv(RotorlabEnv):
         self.setpoint_period_s = float(setpoint_period_s)
         self.u_limit_pct = float(self.base_vehicle.command_limit_pct)
         self.gains = resolve_gains(self.base_vehicle, gains)
-        if control == "command":
+        self._ctl = None
+        if control in ("command", "controller"):
             bound, unit = self.u_limit_pct, "%"
         else:
             if rate_limit_dps is None:
@@ -111,6 +120,16 @@ class RigEnv(RotorlabEnv):
             lo += [-ANGLE_BOUND_DEG, -RATE_BOUND_DPS]
         self.observation_space = box(lo, [-x for x in lo])
         self._pid = DiscretePID(self.gains[axis].inner, self.control_dt_s, -self.u_limit_pct, self.u_limit_pct)
+        if controller is not None:
+            from rotorlab.sim.control.statespace import StateSpaceController, as_controller_spec
+
+            spec = as_controller_spec(controller)
+            cmd = ("u_lat", "u_lon")[self._cmd_index - 1]
+            if spec.outputs != (cmd,):
+                raise ConfigError(f"the {axis} rig's controller sets its axis command", field="controller.outputs",
+                                  expected=[cmd], got=list(spec.outputs))
+            self._ctl = StateSpaceController(spec, self.control_dt_s, [self.u_limit_pct])
+            self._ctl_out, self._ctl_ref = cmd, f"{self._angle}_ref"
         self._setpoints = np.zeros(self.n_steps + 1)
         self._last_action = 0.0
         self._meas = None
@@ -138,6 +157,8 @@ class RigEnv(RotorlabEnv):
             self._setpoints = np.zeros(n)
         self._last_action = 0.0
         self._pid.reset()
+        if self._ctl is not None:
+            self._ctl.reset()
         self._hover_col = self.vehicle.hover_collective_pct  # a property computed from the spec: once per episode
 
     # ------------------------------------------------------------------ stepping
@@ -145,6 +166,11 @@ class RigEnv(RotorlabEnv):
         a = float(action[0])
         if self.control == "command":
             u = a
+        elif self.control == "controller":
+            sig = dict(self._meas)
+            sig[self._ctl_ref] = self._setpoint()
+            lim = self.u_limit_pct
+            u = min(max(self._ctl.step(self.sim.time, sig)[self._ctl_out] + a, -lim), lim)
         else:
             u = self._pid.step(a, self._meas[self._rate])
         cmd = [self._hover_col, 0.0, 0.0, 0.0]
