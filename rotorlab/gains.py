@@ -22,11 +22,10 @@ One table per loop::
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 
 from rotorlab import atomic
-from rotorlab.config import read_toml
+from rotorlab.config import Table, read_toml
 from rotorlab.errors import ConfigError
 
 LOOPS = ("outer", "inner")
@@ -77,71 +76,34 @@ class GainSet:
         return "\n".join(lines) + "\n"
 
 
-def _num(src, field, value, *, lo=None, hi=None, lo_open=False):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(file=src, field=field, expected="a finite number", got=value)
-    value = float(value)
-    if lo is not None and (value < lo or (lo_open and value == lo)):
-        rng = f"{'>' if lo_open else '>='} {lo}" + (f" and <= {hi}" if hi is not None else "")
-        raise ConfigError(file=src, field=field, expected=f"a value {rng}", got=value)
-    if hi is not None and value > hi:
-        raise ConfigError(file=src, field=field, expected=f"a value in [{lo}, {hi}]", got=value)
-    return value
-
-
-def _loop(src, prefix, table, *, outer: bool) -> LoopGains:
-    if not isinstance(table, dict):
-        raise ConfigError(file=src, field=prefix, expected="a table", got=table)
-    known = {f.name for f in dataclasses.fields(LoopGains)}
-    unknown = set(table) - known
-    if unknown:
-        raise ConfigError(file=src, field=f"{prefix}.{sorted(unknown)[0]}", expected=f"one of {sorted(known)}",
-                          got=sorted(unknown)[0])
-    if "kp" not in table:
-        raise ConfigError("missing gain", file=src, field=f"{prefix}.kp", expected="a number")
+def _loop(t: Table, *, outer: bool) -> LoopGains:
     vals = {
-        "kp": _num(src, f"{prefix}.kp", table["kp"]),
-        "ki": _num(src, f"{prefix}.ki", table.get("ki", 0.0), lo=0.0),
-        "kd": _num(src, f"{prefix}.kd", table.get("kd", 0.0)),
-        "tf": _num(src, f"{prefix}.tf", table.get("tf", 0.0), lo=0.0),
-        "b": _num(src, f"{prefix}.b", table.get("b", 1.0), lo=0.0, hi=1.0),
-        "c": _num(src, f"{prefix}.c", table.get("c", 1.0), lo=0.0, hi=1.0),
+        "kp": t.num("kp"),
+        "ki": t.num("ki", 0.0, lo=0.0),
+        "kd": t.num("kd", 0.0),
+        "tf": t.num("tf", 0.0, lo=0.0),
+        "b": t.num("b", 1.0, lo=0.0, hi=1.0),
+        "c": t.num("c", 1.0, lo=0.0, hi=1.0),
     }
     if outer and vals["ki"] != 0.0:
-        raise ConfigError("the outer loop is a PD", file=src, field=f"{prefix}.ki", expected="0", got=vals["ki"])
+        raise t.error("ki", "the outer loop is a PD", expected="0", got=vals["ki"])
     if vals["kd"] != 0.0 and vals["tf"] <= 0.0:
-        raise ConfigError("a derivative term needs a filter", file=src, field=f"{prefix}.tf",
-                          expected="tf > 0 s when kd != 0", got=vals["tf"])
+        raise t.error("tf", "a derivative term needs a filter", expected="tf > 0 s when kd != 0", got=vals["tf"])
     return LoopGains(**vals)
 
 
 def parse_gains(data: dict, name: str = "custom", src="<gains>") -> GainSet:
     """Validate a parsed TOML mapping into a :class:`GainSet`; errors name the file and field."""
-    if not isinstance(data, dict) or "pitch" not in data:
-        raise ConfigError("missing axis", file=src, field="pitch", expected="tables [pitch.outer] and [pitch.inner]",
-                          got=sorted(data) if isinstance(data, dict) else data)
-    unknown = set(data) - set(AXES)
-    if unknown:
-        raise ConfigError(file=src, field=sorted(unknown)[0], expected=f"one of {list(AXES)}", got=sorted(unknown)[0])
+    top = Table(src, data)
+    if "pitch" not in top:
+        raise top.error("pitch", "missing axis", expected="tables [pitch.outer] and [pitch.inner]", got=sorted(data))
     axes = {}
     for axis in AXES:
-        if axis not in data:
+        t = top.table(axis, required=False)
+        if t is None:
             continue
-        table = data[axis]
-        if not isinstance(table, dict):
-            raise ConfigError(file=src, field=axis, expected="a table", got=table)
-        for loop in LOOPS:
-            if loop not in table:
-                raise ConfigError("missing loop", file=src, field=f"{axis}.{loop}",
-                                  expected=f"a [{axis}.{loop}] table", got=sorted(table))
-        extra = set(table) - set(LOOPS)
-        if extra:
-            raise ConfigError(file=src, field=f"{axis}.{sorted(extra)[0]}", expected="'outer' or 'inner'",
-                              got=sorted(extra)[0])
-        axes[axis] = AxisGains(
-            outer=_loop(src, f"{axis}.outer", table["outer"], outer=True),
-            inner=_loop(src, f"{axis}.inner", table["inner"], outer=False),
-        )
+        axes[axis] = AxisGains(outer=_loop(t.table("outer"), outer=True), inner=_loop(t.table("inner"), outer=False))
+    top.check_unknown()
     axes.setdefault("roll", axes["pitch"])
     return GainSet(name=name, axes=axes)
 

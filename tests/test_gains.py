@@ -42,7 +42,7 @@ def _pitch(**inner):
     ({"pitch": {"outer": {"kp": 1.0}}}, "pitch.inner", "table"),
     (_pitch(kd=0.02, tf=-0.01), "pitch.inner.tf", ">= 0"),
     (_pitch(b=1.5), "pitch.inner.b", "[0.0, 1.0]"),
-    (_pitch(c=-0.1), "pitch.inner.c", ">= 0"),
+    (_pitch(c=-0.1), "pitch.inner.c", "[0.0, 1.0]"),
     (_pitch(kd=0.02), "pitch.inner.tf", "tf > 0"),
     (_pitch(kp="fast"), "pitch.inner.kp", "finite number"),
     (_pitch(kq=1.0), "pitch.inner.kq", "one of"),

@@ -21,9 +21,11 @@ optional ``hard = true/false``. A weight is a maximum-gain profile: a number, or
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import math
 from pathlib import Path
 
-from rotorlab.config import read_toml
+from rotorlab.config import REQUIRED, Table, _is_number, read_toml
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.tune import cascade as cas
 from rotorlab.tune import goals as G
@@ -47,116 +49,89 @@ def builtin_specs() -> dict:
     return {p.stem: p for p in sorted(SPEC_DIR.glob("*.toml"))}
 
 
-def _get(src, tbl, key, field, kind, default=dataclasses.MISSING):
-    if key not in tbl:
-        if default is dataclasses.MISSING:
-            raise ConfigError("missing field", file=src, field=field, expected=kind)
-        return default
-    v = tbl[key]
-    ok = {"number": lambda x: isinstance(x, (int, float)) and not isinstance(x, bool),
-          "string": lambda x: isinstance(x, str), "bool": lambda x: isinstance(x, bool),
-          "list": lambda x: isinstance(x, list), "table": lambda x: isinstance(x, dict)}[kind](v)
-    if not ok:
-        raise ConfigError(file=src, field=field, expected=f"a {kind}", got=v)
-    return float(v) if kind == "number" else v
-
-
-def _weight(src, field, w):
-    if isinstance(w, (int, float)) and not isinstance(w, bool):
-        if w <= 0:
-            raise ConfigError(file=src, field=field, expected="a positive maximum gain", got=w)
-        return float(w)
+def _weight(g: Table, key, default):
+    """A maximum-gain profile: a positive number or a ``{kind = "highpass", order, gain_db, corner_rad_s}`` table."""
+    w = g.raw(key, default)
+    if _is_number(w):
+        return g.num(key, default, lo=0.0, lo_open=True)
     if not isinstance(w, dict):
-        raise ConfigError(file=src, field=field, expected="a number or a {kind = \"highpass\", ...} table", got=w)
-    kind = w.get("kind")
-    if kind != "highpass":
-        raise ConfigError(file=src, field=f"{field}.kind", expected="'highpass'", got=kind)
-    order = _get(src, w, "order", f"{field}.order", "number", 1.0)
-    if order < 1 or order != int(order):
-        raise ConfigError(file=src, field=f"{field}.order", expected="a whole number >= 1", got=order)
-    gain_db = _get(src, w, "gain_db", f"{field}.gain_db", "number")
-    corner = _get(src, w, "corner_rad_s", f"{field}.corner_rad_s", "number")
-    if corner <= 0:
-        raise ConfigError(file=src, field=f"{field}.corner_rad_s", expected="a positive frequency", got=corner)
-    return G.highpass_max_gain(int(order), gain_db, corner)
+        raise g.error(key, expected='a positive number or a {kind = "highpass", ...} table', got=w)
+    t = g.table(key)
+    t.str("kind", choices=("highpass",))
+    order = t.int("order", 1, lo=1, hi=8)
+    gain_db = t.num("gain_db", lo=-200.0, hi=200.0)
+    corner = t.num("corner_rad_s", lo=0.0, lo_open=True)
+    return G.highpass_max_gain(order, gain_db, corner)
 
 
-def _goal(src, i, g):
-    f = f"goal[{i}]"
-    if not isinstance(g, dict):
-        raise ConfigError(file=src, field=f, expected="a table", got=g)
-    typ = _get(src, g, "type", f"{f}.type", "string")
-    hard = g.get("hard")
-    kw = {} if hard is None else {"hard": bool(hard)}
-    try:
-        if typ == "crossover":
-            band = _get(src, g, "band_rad_s", f"{f}.band_rad_s", "list")
-            if len(band) != 2:
-                raise ConfigError(file=src, field=f"{f}.band_rad_s", expected="[wc_min, wc_max]", got=band)
-            return G.CrossoverBand(_get(src, g, "loop", f"{f}.loop", "string"), float(band[0]), float(band[1]), **kw)
-        if typ == "tracking":
-            return G.Tracking(_get(src, g, "from", f"{f}.from", "string", "theta_ref"),
-                              _get(src, g, "to", f"{f}.to", "string", "theta"),
-                              _get(src, g, "response_time_s", f"{f}.response_time_s", "number"),
-                              _get(src, g, "max_error_pct", f"{f}.max_error_pct", "number", 0.001) / 100.0,
-                              _get(src, g, "peak_error", f"{f}.peak_error", "number", 1.0), **kw)
-        if typ in ("rejection", "gain"):
-            band = _get(src, g, "band_rad_s", f"{f}.band_rad_s", "list", [0.0, float("inf")])
-            if len(band) != 2 or not all(isinstance(b, (int, float)) for b in band) or band[0] >= band[1]:
-                raise ConfigError(file=src, field=f"{f}.band_rad_s", expected="[low, high] in rad/s", got=band)
-            return G.Rejection(_get(src, g, "from", f"{f}.from", "string"), _get(src, g, "to", f"{f}.to", "string"),
-                               _weight(src, f"{f}.weight", g.get("weight", 1.0)), band_rad_s=tuple(map(float, band)),
-                               **kw)
-        if typ == "sensitivity":
-            return G.Sensitivity(_get(src, g, "point", f"{f}.point", "string"),
-                                 _weight(src, f"{f}.weight", g.get("weight", 2.0)), **kw)
-        if typ == "effort":
-            return G.Effort(frm=_get(src, g, "from", f"{f}.from", "string", "theta_ref"),
-                            to=_get(src, g, "to", f"{f}.to", "string", "u_ctrl"),
-                            max_gain=_weight(src, f"{f}.max_gain", g.get("max_gain", 1.0)), **kw)
-        if typ == "margins":
-            return G.Margins(_get(src, g, "point", f"{f}.point", "string", "u"),
-                             _get(src, g, "gm_db", f"{f}.gm_db", "number", 6.0),
-                             _get(src, g, "pm_deg", f"{f}.pm_deg", "number", 45.0), **kw)
-        if typ == "poles":
-            return G.Poles(_get(src, g, "min_damping", f"{f}.min_damping", "number", 0.0),
-                           _get(src, g, "min_decay", f"{f}.min_decay", "number", 0.0), **kw)
-    except UnknownNameError as exc:
-        raise ConfigError(str(exc), file=src, field=f) from None
-    except ConfigError as exc:
-        if exc.file is None:
-            raise ConfigError(str(exc), file=src, field=f) from None
-        raise
-    raise ConfigError(file=src, field=f"{f}.type",
-                      expected="one of crossover, tracking, rejection, gain, sensitivity, effort, margins, poles",
-                      got=typ)
+def _band(g: Table, key, default=REQUIRED):
+    band = g.vec(key, 2, default, lo=0.0, allow_inf=True)
+    if band[0] >= band[1] or math.isinf(band[0]):
+        raise g.error(key, expected="[low, high] in rad/s with low < high", got=list(band))
+    return band
+
+
+def _goal(g: Table):
+    """One [[goal]]: the keys each goal type reads are the only ones it accepts."""
+    typ = g.str("type", choices=GOAL_TYPES)
+    kw = {"hard": g.bool("hard")} if "hard" in g else {}
+    if typ == "crossover":
+        lo, hi = _band(g, "band_rad_s")
+        return G.CrossoverBand(g.str("loop"), lo, hi, **kw)
+    if typ == "tracking":
+        return G.Tracking(g.str("from", "theta_ref"), g.str("to", "theta"),
+                          g.num("response_time_s", lo=0.0, lo_open=True),
+                          g.num("max_error_pct", 0.001, lo=0.0, lo_open=True, hi=100.0) / 100.0,
+                          g.num("peak_error", 1.0, lo=0.0, lo_open=True), **kw)
+    if typ in ("rejection", "gain"):
+        return G.Rejection(g.str("from"), g.str("to"), _weight(g, "weight", 1.0),
+                           band_rad_s=_band(g, "band_rad_s", (0.0, math.inf)), **kw)
+    if typ == "sensitivity":
+        return G.Sensitivity(g.str("point"), _weight(g, "weight", 2.0), **kw)
+    if typ == "effort":
+        return G.Effort(frm=g.str("from", "theta_ref"), to=g.str("to", "u_ctrl"),
+                        max_gain=_weight(g, "max_gain", 1.0), **kw)
+    if typ == "margins":
+        return G.Margins(g.str("point", "u"), g.num("gm_db", 6.0, lo=0.0, hi=100.0),
+                         g.num("pm_deg", 45.0, lo=0.0, hi=180.0), **kw)
+    return G.Poles(g.num("min_damping", 0.0, lo=0.0, hi=1.0), g.num("min_decay", 0.0, lo=0.0), **kw)
+
+
+GOAL_TYPES = ("crossover", "tracking", "rejection", "gain", "sensitivity", "effort", "margins", "poles")
 
 
 def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
-    if not isinstance(data, dict) or "cascade" not in data:
-        raise ConfigError("missing [cascade] table", file=src, field="cascade")
-    unknown = set(data) - {"cascade", "goal", "meta"}
-    if unknown:
-        raise ConfigError(file=src, field=sorted(unknown)[0], expected="[cascade], [[goal]] or [meta]",
-                          got=sorted(unknown)[0])
-    c = _get(src, data, "cascade", "cascade", "table")
-    dt = _get(src, c, "dt", "cascade.dt", "number")
-    if dt < 0:
-        raise ConfigError(file=src, field="cascade.dt", expected="a sample time >= 0 s (0 = continuous)", got=dt)
-    axis = _get(src, c, "axis", "cascade.axis", "string", "pitch")
-    two_dof = _get(src, c, "two_dof", "cascade.two_dof", "bool", False)
-    tune = _get(src, c, "tune", "cascade.tune", "list")
+    top = Table(src, data)
+    top.table("meta", required=False, free=True)
+    c = top.table("cascade")
+    dt = c.num("dt", lo=0.0, hi=10.0)
+    axis = c.str("axis", "pitch", choices=("pitch", "roll"))
+    two_dof = c.bool("two_dof", False)
+    tune = c.strlist("tune")
     for t in tune:
         if t not in cas.PARAM_NAMES or t == "outer.ki":
-            raise ConfigError(file=src, field="cascade.tune", expected=f"names among {list(cas.PARAM_NAMES)}", got=t)
+            close = difflib.get_close_matches(t, list(cas.PARAM_NAMES), n=1)
+            raise c.error("tune", expected=f"names among {[p for p in cas.PARAM_NAMES if p != 'outer.ki']}", got=t,
+                          hint=f"did you mean '{close[0]}'?" if close else None)
         if not two_dof and t.split(".")[1] in ("b", "c"):
-            raise ConfigError("set-point weights are tuned only with two_dof = true", file=src, field="cascade.tune",
-                              got=t)
-    goals = data.get("goal", [])
+            raise c.error("tune", "set-point weights are tuned only with two_dof = true", got=t)
+    goals = top.raw("goal", [])
     if not isinstance(goals, list) or not goals:
-        raise ConfigError("a spec needs at least one [[goal]]", file=src, field="goal")
-    return Spec(name=name, dt=dt, axis=axis, two_dof=two_dof, tune=list(tune),
-                goals=[_goal(src, i, g) for i, g in enumerate(goals)])
+        raise top.error("goal", "a spec needs at least one [[goal]]", expected="[[goal]] tables", got=goals)
+    parsed = []
+    for i, g in enumerate(goals):
+        t = Table(src, g, f"goal[{i}].")
+        try:
+            parsed.append(_goal(t))
+        except UnknownNameError as exc:
+            raise ConfigError(str(exc), file=src, field=f"goal[{i}]") from None
+        except ConfigError as exc:
+            if exc.file is None:  # raised by the goal itself: name where it came from
+                raise ConfigError(str(exc), file=src, field=f"goal[{i}]") from None
+            raise
+        t.check_unknown()
+    top.check_unknown()
+    return Spec(name=name, dt=dt, axis=axis, two_dof=two_dof, tune=list(tune), goals=parsed)
 
 
 def load_spec(path_or_name) -> Spec:

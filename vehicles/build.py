@@ -26,7 +26,7 @@ import math
 import mujoco
 import numpy as np
 
-from .spec import VehicleSpec
+from .spec import VehicleSpec, check_delay_steps
 
 ROTOR_ACTUATORS = ("thrust", "inflow", "hx", "hy")
 
@@ -188,6 +188,7 @@ def add_rotor(s: mujoco.MjSpec, v: VehicleSpec, i: int, physics_dt_s: float, pre
     thrust actuator's, the airframe gets ``c (T_cmd - T)`` (zero in steady state), all in MuJoCo's actuator
     pipeline (history buffer, exact filter) with no Python in the physics loop.
     """
+    check_delay_steps(v, physics_dt_s)
     r = v.rotor
     aero = _aero_default(s)
     sp = r.spin[i - 1]

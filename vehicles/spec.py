@@ -16,77 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rotorlab.config import read_toml
+from rotorlab.config import Table, read_toml
 from rotorlab.errors import ConfigError
 
 RHO_AIR = 1.225  # kg/m^3, ISA sea level
 G0 = 9.81  # m/s^2
-
-
-class _Reader:
-    """Typed access to a TOML table that reports the file and dotted field on every error."""
-
-    def __init__(self, src, data: dict, prefix: str = ""):
-        self.src, self.data, self.prefix = src, data, prefix
-
-    def _field(self, key):
-        return f"{self.prefix}{key}"
-
-    def table(self, key, required=True) -> "_Reader | None":
-        if key not in self.data:
-            if required:
-                raise ConfigError("missing table", file=self.src, field=self._field(key), expected=f"a [{self._field(key)}] table")
-            return None
-        val = self.data[key]
-        if not isinstance(val, dict):
-            raise ConfigError(file=self.src, field=self._field(key), expected="a table", got=val)
-        return _Reader(self.src, val, f"{self._field(key)}.")
-
-    def num(self, key, default=None, *, lo=None, hi=None, lo_open=False) -> float:
-        if key not in self.data:
-            if default is None:
-                raise ConfigError("missing field", file=self.src, field=self._field(key), expected="a number")
-            return float(default)
-        v = self.data[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise ConfigError(file=self.src, field=self._field(key), expected="a finite number", got=v)
-        if lo is not None and (v < lo or (lo_open and v == lo)):
-            raise ConfigError(file=self.src, field=self._field(key), expected=f"a value {'>' if lo_open else '>='} {lo}", got=v)
-        if hi is not None and v > hi:
-            raise ConfigError(file=self.src, field=self._field(key), expected=f"a value <= {hi}", got=v)
-        return float(v)
-
-    def vec(self, key, n, default=None, *, lo=None, lo_open=False) -> tuple:
-        if key not in self.data:
-            if default is None:
-                raise ConfigError("missing field", file=self.src, field=self._field(key), expected=f"a list of {n} numbers")
-            return tuple(float(x) for x in default)
-        v = self.data[key]
-        if not isinstance(v, list) or len(v) != n or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
-            raise ConfigError(file=self.src, field=self._field(key), expected=f"a list of {n} numbers", got=v)
-        for x in v:
-            if lo is not None and (x < lo or (lo_open and x == lo)):
-                raise ConfigError(file=self.src, field=self._field(key),
-                                  expected=f"every value {'>' if lo_open else '>='} {lo}", got=v)
-        return tuple(float(x) for x in v)
-
-    def only(self, keys) -> None:
-        """Strict reading: a key this table does not define is an error naming it and the valid ones."""
-        for k in self.data:
-            if k not in keys:
-                raise ConfigError("unknown field", file=self.src, field=self._field(k), expected=f"one of {list(keys)}",
-                                  got=k)
-
-    def str(self, key, default=None, choices=None) -> str:
-        if key not in self.data:
-            if default is None:
-                raise ConfigError("missing field", file=self.src, field=self._field(key), expected="a string")
-            return default
-        v = self.data[key]
-        if not isinstance(v, str) or (choices and v not in choices):
-            raise ConfigError(file=self.src, field=self._field(key),
-                              expected=f"one of {list(choices)}" if choices else "a string", got=v)
-        return v
 
 
 @dataclasses.dataclass(frozen=True)
@@ -299,42 +233,66 @@ class VehicleSpec:
         return r.thrust_slope_N_per_rad if self.kind == "variable-pitch" else r.k_thrust
 
 
-def _per_rotor(r: _Reader, key: str, lo_open: bool) -> tuple:
+# physical plausibility bounds: a gram-scale to a tonne-scale multirotor; anything outside is a typo (1e-12 kg,
+# a missing exponent) that would otherwise reach MuJoCo's mass checks as a traceback
+MASS_RANGE_KG = (1e-3, 1e3)
+INERTIA_MIN_KGM2 = 1e-9
+# servo/motor lags and transport delays of flying multirotors are tens of ms; a second is already no aircraft,
+# and MuJoCo's delay buffer grows with delay / physics step
+MAX_LAG_DELAY_S = 1.0
+
+
+def _per_rotor(r: Table, key: str, lo_open: bool, hi: float | None = None) -> tuple:
     """A number shared by the four rotors, or a list of four (rotor 1 front, 2 right, 3 rear, 4 left)."""
     if isinstance(r.data.get(key), list):
-        return r.vec(key, 4, lo=0.0, lo_open=lo_open)
-    return (r.num(key, lo=0.0, lo_open=lo_open),) * 4
+        return r.vec(key, 4, lo=0.0, lo_open=lo_open, hi=hi)
+    return (r.num(key, lo=0.0, lo_open=lo_open, hi=hi),) * 4
 
 
-def _published(src, rd: _Reader | None) -> dict:
+def _published(rd: Table | None) -> dict:
     out = {}
     if rd is None:
         return out
-    for key in rd.data:
+    for key in rd.keys():
         t = rd.table(key)
-        num, den = t.data.get("num"), t.data.get("den")
-        for fld, v in (("num", num), ("den", den)):
-            if not isinstance(v, list) or not v or not all(isinstance(x, (int, float)) for x in v):
-                raise ConfigError(file=src, field=f"published.{key}.{fld}", expected="a non-empty list of numbers", got=v)
-        out[key] = PublishedModel(tuple(map(float, num)), tuple(map(float, den)), t.num("delay_s", lo=0.0),
+        out[key] = PublishedModel(t.vec("num"), t.vec("den"), t.num("delay_s", lo=0.0),
                                   t.str("input"), t.str("output"), t.str("source"))
     return out
 
 
-def _commands(c: _Reader) -> CommandLimits:
-    c.only(CommandLimits.KEYS)
+def _commands(c: Table) -> CommandLimits:
     return CommandLimits(**{k: c.num(k, lo=0.0, lo_open=True) for k in CommandLimits.KEYS})
 
 
+def check_delay_steps(v: "VehicleSpec", physics_dt_s: float) -> None:
+    """Every rotor delay must be a whole number of physics steps: MuJoCo's actuator history realises it, and a
+    rounded delay would silently change the plant."""
+    for d in v.rotor.delay_s:
+        k = d / physics_dt_s
+        if abs(k - round(k)) > 1e-6:
+            raise ConfigError("the transport delay is realised by MuJoCo's actuator history buffer",
+                              file=v.path, field="rotor.delay_s",
+                              expected=f"a multiple of the physics step {physics_dt_s} s", got=d)
+
+
+def _check_inertia(a: Table, inertia: tuple) -> None:
+    ixx, iyy, izz = inertia
+    # principal moments of any rigid body obey the triangle inequality (I_a + I_b >= I_c)
+    for i, (x, y, z) in enumerate(((iyy, izz, ixx), (ixx, izz, iyy), (ixx, iyy, izz))):
+        if x + y < z * (1 - 1e-9):
+            raise a.error("inertia_kgm2", "principal moments of a rigid body obey I_a + I_b >= I_c",
+                          expected=f"I_{'xyz'[i]} <= sum of the other two", got=list(inertia))
+
+
 def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> VehicleSpec:
-    rd = _Reader(src, data)
+    rd = Table(src, data)
     v = rd.table("vehicle")
     kind = v.str("kind", choices=("variable-pitch", "variable-rpm"))
     a = rd.table("airframe")
     r = rd.table("rotor")
     spin = r.vec("spin", 4)
     if any(s not in (-1.0, 1.0) for s in spin):
-        raise ConfigError(file=src, field="rotor.spin", expected="four values, each +1 or -1", got=list(spin))
+        raise r.error("spin", expected="four values, each +1 or -1", got=list(spin))
     common = dict(
         radius_m=r.num("radius_m", lo=0.0, lo_open=True),
         spin=spin,
@@ -342,8 +300,8 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         axial_damping_N_per_mps=r.num("axial_damping_N_per_mps", lo=0.0),
         hforce_N_per_mps=r.num("hforce_N_per_mps", lo=0.0),
         flap_arm_m=r.num("flap_arm_m", lo=0.0),
-        lag_s=_per_rotor(r, "lag_s", lo_open=True),
-        delay_s=_per_rotor(r, "delay_s", lo_open=False),
+        lag_s=_per_rotor(r, "lag_s", lo_open=True, hi=MAX_LAG_DELAY_S),
+        delay_s=_per_rotor(r, "delay_s", lo_open=False, hi=MAX_LAG_DELAY_S),
         blades=int(r.num("blades", 2, lo=2)),
         solidity=r.num("solidity", 0.0, lo=0.0, hi=1.0),
         lift_slope_per_rad=r.num("lift_slope_per_rad", 0.0, lo=0.0),
@@ -370,13 +328,6 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
                           speed_map=r.vec("speed_map", 3),
                           hover_command=r.num("hover_command", lo=0.0, lo_open=True, hi=1.0),
                           inertia_kgm2=r.num("inertia_kgm2", 0.0, lo=0.0))
-    if physics_dt_s:
-        for d in rotor.delay_s:
-            k = d / physics_dt_s
-            if abs(k - round(k)) > 1e-6:
-                raise ConfigError("the transport delay is realised by MuJoCo's actuator history buffer",
-                                  file=src, field="rotor.delay_s",
-                                  expected=f"a multiple of the physics step {physics_dt_s} s", got=d)
     i = rd.table("imu")
     imu = ImuSpec(
         mass_kg=i.num("mass_kg", lo=0.0, lo_open=True), size_m=i.num("size_m", lo=0.0, lo_open=True),
@@ -388,9 +339,9 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
     rigs = {}
     rg = rd.table("rig", required=False)
     if rg is not None:
-        for axis in rg.data:
+        for axis in rg.keys():
             if axis not in ("pitch", "roll"):
-                raise ConfigError(file=src, field=f"rig.{axis}", expected="'pitch' or 'roll'", got=axis)
+                raise rg.error(axis, "unknown rig axis", expected="'pitch' or 'roll'", got=axis)
             t = rg.table(axis)
             rigs[axis] = RigSpec(
                 ring_inertia_kgm2=t.num("ring_inertia_kgm2", lo=0.0, lo_open=True),
@@ -409,31 +360,32 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
                               field="flight_software.rate_hz",
                               expected=f"a rate whose period is a multiple of the physics step {physics_dt_s} s",
                               got=rate_hz)
-    srcs = rd.data.get("sources", {})
-    return VehicleSpec(
+    srcs = rd.table("sources", required=False, free=True)
+    inertia = a.vec("inertia_kgm2", 3, lo=INERTIA_MIN_KGM2)
+    _check_inertia(a, inertia)
+    spec = VehicleSpec(
         name=v.str("name"), description=v.str("description", ""), kind=kind, path=Path(src),
-        mass_kg=a.num("mass_kg", lo=0.0, lo_open=True), inertia_kgm2=a.vec("inertia_kgm2", 3, lo=0.0, lo_open=True),
+        mass_kg=a.num("mass_kg", lo=MASS_RANGE_KG[0], hi=MASS_RANGE_KG[1]), inertia_kgm2=inertia,
         arm_m=a.num("arm_m", lo=0.0, lo_open=True), rotor_height_m=a.num("rotor_height_m", 0.0),
         body_size_m=a.vec("body_size_m", 3, lo=0.0, lo_open=True), cp_offset_m=a.vec("cp_offset_m", 3, (0, 0, 0)),
         rotor=rotor, imu=imu, rigs=rigs,
         commands=_commands(rd.table("commands")),
-        published=_published(src, rd.table("published", required=False)),
-        sources=dict(srcs) if isinstance(srcs, dict) else {}, control_rate_hz=rate_hz,
-        campaign_band_rad_s=_campaign_band(src, rd.table("campaign", required=False)),
+        published=_published(rd.table("published", required=False)),
+        sources=dict(srcs.data) if srcs is not None else {}, control_rate_hz=rate_hz,
+        campaign_band_rad_s=_campaign_band(rd.table("campaign", required=False)),
     )
+    rd.check_unknown()
+    if physics_dt_s:
+        check_delay_steps(spec, physics_dt_s)
+    return spec
 
 
-def _campaign_band(src, c: _Reader | None) -> tuple | None:
+def _campaign_band(c: Table | None) -> tuple | None:
     if c is None:
         return None
-    unknown = sorted(set(c.data) - {"band_rad_s"})
-    if unknown:
-        raise ConfigError("unknown field", file=src, field=f"campaign.{unknown[0]}", expected="band_rad_s",
-                          got=unknown[0])
     band = c.vec("band_rad_s", 2, lo=0.0)
     if not band[0] < band[1]:
-        raise ConfigError(file=src, field="campaign.band_rad_s", expected="[low, high] with low < high",
-                          got=list(band))
+        raise c.error("band_rad_s", expected="[low, high] with low < high", got=list(band))
     return band
 
 
