@@ -1,14 +1,27 @@
 """Atomic file writes: write to a temporary file beside the target, fsync, then rename.
 
-A crash or a full disk leaves either the old file or no file, never a half-written one.
+A crash or a full disk leaves either the old file or no file, never a half-written one. The temporary file is
+created with mode 0666 minus the user's umask, as ``open()`` would create the target itself (``mkstemp``'s 0600
+would make every log, report and gains file unreadable to the user's group).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
+import secrets
 from pathlib import Path
+
+
+def _create_temp(folder: Path, name: str, suffix: str) -> Path:
+    """A new empty file beside the target, created exclusively with the umask applied by the kernel."""
+    while True:
+        tmp = folder / f".{name}.{secrets.token_hex(4)}{suffix}.tmp"
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
+            return tmp
+        except FileExistsError:
+            continue
 
 
 @contextlib.contextmanager
@@ -16,10 +29,9 @@ def atomic_path(path, suffix: str = ""):
     """Yield a temporary path in the target's folder; on success it is renamed onto ``path``."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix + ".tmp", dir=path.parent)
-    os.close(fd)
+    tmp = _create_temp(path.parent, path.name, suffix)
     try:
-        yield Path(tmp)
+        yield tmp
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)

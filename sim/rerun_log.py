@@ -1,8 +1,12 @@
 """Rerun visual logs of runs: geometry from the MuJoCo model, body poses, rotor thrust arrows, wind, tendons
 (the rope) and the run's time series, on a blueprint with one 3D view and one panel per signal group.
 
-Everything is sent column-wise after the run (``send_columns``), never per tick, and written headless to a
-``.rrd`` file (no viewer is spawned): ``rerun FILE.rrd`` or ``rotorlab view RUN_DIR`` opens it.
+Everything is sent column-wise after the run (``send_columns``), never per tick, into an in-memory recording
+that is then written to the ``.rrd`` file through :mod:`rotorlab.atomic` (no viewer is spawned): ``rerun FILE.rrd``
+or ``rotorlab view RUN_DIR`` opens it. rerun's own file sink (``RecordingStream.save``) writes from a background
+thread: a failed write (full disk, file-size limit) made its ``flush`` wait forever, uninterruptible by Ctrl-C,
+and left a truncated file at the final path; here a failed write is an ``OSError`` in this thread and the final
+path holds either the old recording or the complete new one.
 
 Entity paths
 ------------
@@ -22,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rotorlab import atomic
 from rotorlab.errors import ConfigError
 
 TIMELINE = "sim_time"
@@ -198,9 +203,8 @@ def record_run(result_or_log, path, *, scene: str | None = None, vehicle=None, i
 
         model = build_scene(scene or info["scene"], vehicle or info["vehicle"]).model
     name = "-".join(str(info[k]) for k in ("scenario", "vehicle", "seed") if k in info) or "run"
-    p.parent.mkdir(parents=True, exist_ok=True)
     rec = rr.RecordingStream(application_id, recording_id=name)
-    rec.save(str(p))
+    mem = rec.memory_recording()
     try:
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         if model is not None:
@@ -219,9 +223,15 @@ def record_run(result_or_log, path, *, scene: str | None = None, vehicle=None, i
         main = [rrb.Spatial3DView(origin="world", name="scene")] if model is not None else []
         rec.send_blueprint(rrb.Blueprint(rrb.Horizontal(*main, rrb.Vertical(*panels)) if main else rrb.Vertical(*panels),
                                          collapse_panels=True))
-    finally:
         rec.flush()
+        data = mem.drain_as_bytes()
+    finally:
         rec.disconnect()
+    try:
+        atomic.write_bytes(p, data)
+    except OSError as exc:
+        raise ConfigError(f"cannot write the recording ({exc.strerror or exc})", field="rerun",
+                          expected="a writable location with room for the file", got=str(p)) from None
     return p
 
 
