@@ -125,12 +125,8 @@ class DaskExecutor(Executor):
                                          dashboard_address=None)
             self.client = Client(self._cluster)
         else:
-            self.name = f"dask://{address}"
-            try:
-                self.client = Client(address, timeout=f"{float(timeout_s)}s")
-            except (OSError, TimeoutError) as exc:
-                raise ExecutorError(f"no Dask scheduler answered at {address} within {timeout_s:g} s ({exc}); "
-                                    "start one with `dask scheduler` or use --executor local") from None
+            self.name = f"dask://{address.removeprefix('tcp://')}"
+            self.client = _connect(Client, address, float(timeout_s))
             self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
 
     def map(self, fn, items, *, desc=None, progress=False):
@@ -147,6 +143,46 @@ class DaskExecutor(Executor):
         self.client.close()
         if self._cluster is not None:
             self._cluster.close()
+
+
+def _connect(Client, address: str, timeout_s: float):
+    """A Dask client of the scheduler at ``tcp://HOST:PORT``, or an :class:`ExecutorError` within ``timeout_s``.
+
+    A plain TCP connect first, so a refused or unroutable address fails in ``timeout_s`` with the OS's reason.
+    Then Dask's own ``identity`` RPC, bounded by ``asyncio.wait_for``, must answer "Scheduler" before a client is
+    made: against something that accepts connections but is no scheduler (an HTTP server) ``Client(timeout=...)``
+    waited for an answer forever, or read the peer's bytes as a frame length and failed allocating exabytes.
+    """
+    import asyncio
+    import socket
+
+    host, port = address.removeprefix("tcp://").rsplit(":", 1)
+    hint = "start one with `dask scheduler` or use --executor local"
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except (OSError, ValueError) as exc:
+        raise ExecutorError(f"no Dask scheduler answered at {address} within {timeout_s:g} s "
+                            f"({getattr(exc, 'strerror', None) or exc}); {hint}") from None
+
+    async def identify():
+        from distributed.core import rpc
+
+        async with rpc(address, timeout=timeout_s) as r:
+            return await r.identity()
+
+    try:
+        ident = asyncio.run(asyncio.wait_for(identify(), timeout_s))
+    except Exception as exc:  # noqa: BLE001 - whatever the peer's bytes make Dask raise, it is not a scheduler
+        why = "no Dask handshake" if isinstance(exc, (asyncio.TimeoutError, TimeoutError)) else type(exc).__name__
+        raise ExecutorError(f"{address} accepts connections but is not a Dask scheduler ({why} within "
+                            f"{timeout_s:g} s); {hint}") from None
+    if not isinstance(ident, dict) or ident.get("type") != "Scheduler":
+        raise ExecutorError(f"{address} answers as {ident.get('type') if isinstance(ident, dict) else ident!r}, "
+                            f"not as a Dask scheduler; {hint}")
+    try:
+        return Client(address, timeout=f"{timeout_s}s")
+    except (OSError, TimeoutError) as exc:
+        raise ExecutorError(f"the Dask scheduler at {address} stopped answering ({exc}); {hint}") from None
 
 
 def get_executor(spec: str | None = "local", max_workers: int | None = None, timeout_s: float = 10.0) -> Executor:
