@@ -180,7 +180,7 @@ def load_log(path, columns: Sequence[str] | None = None, *, column_map: Mapping[
             table = pq.read_table(path)
         except Exception as exc:  # pyarrow raises several types for a corrupt file
             raise DataError(f"{source}: not a readable Parquet file ({exc})") from exc
-        file_units, meta = decode_metadata(table.schema.metadata)
+        file_units, meta = decode_metadata(table.schema.metadata, source)
     elif suffix == ".csv":
         import pyarrow.csv as pcsv
 

@@ -41,6 +41,28 @@ def atomic_path(path, suffix: str = ""):
         raise
 
 
+def check_writable_dir(path, what: str = "output folder") -> Path:
+    """Create ``path`` if needed and prove a file can be created in it, before any costly work is done.
+
+    A probe file is the only reliable test (permissions, read-only or full file systems, running as root).
+
+    Raises
+    ------
+    rotorlab.errors.ConfigError
+        Naming the folder and the operating system's reason.
+    """
+    from rotorlab.errors import ConfigError
+
+    p = Path(path)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        os.unlink(_create_temp(p, "probe", ""))
+    except OSError as exc:
+        raise ConfigError(f"cannot write into the {what} ({exc.strerror or exc})", file=p,
+                          expected="a writable folder") from None
+    return p
+
+
 def write_text(path, text: str) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")

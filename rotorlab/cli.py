@@ -2,6 +2,9 @@
 
 Each sub-command lives in its own module under ``rotorlab.commands`` exposing ``add_parser(subparsers)``
 and ``run(args) -> int``; modules are imported lazily so ``rotorlab ident`` never loads MuJoCo.
+
+Exit status: 0 done; 1 done but goals not met or the run stopped early; 2 bad input (file, field, expected,
+got) or an environment that cannot do the job (unwritable folder, unreachable scheduler); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -30,6 +33,28 @@ from rotorlab.errors import RotorlabError
 
 class CLIError(RotorlabError):
     """A user-facing error raised by a command: printed without a traceback, exit status 2."""
+
+
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1 (counts of starts, jobs, iterations, samples)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {v}")
+    return v
+
+
+def seed_int(text: str) -> int:
+    """argparse type: a seed, a whole number in [0, 2**32) (numpy's SeedSequence refuses negative entropy)."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+    if not 0 <= v < 2**32:
+        raise argparse.ArgumentTypeError(f"expected a whole number in [0, 2**32), got {v}")
+    return v
 
 
 class HelpFormatter(argparse.RawDescriptionHelpFormatter):
@@ -85,6 +110,14 @@ def main(argv: list[str] | None = None) -> int:
         # matching on the base class also holds when this module runs as __main__ (python -m rotorlab.cli)
         print(f"rotorlab {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        # the file system refused (permissions, full disk, file-size limit): the OS names the file and the reason
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"rotorlab {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"\nrotorlab {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

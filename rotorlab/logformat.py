@@ -30,12 +30,32 @@ def encode_metadata(units: dict | None = None, meta: dict | None = None) -> dict
     return {UNITS_KEY: json.dumps(units).encode(), META_KEY: json.dumps(info, default=_plain).encode()}
 
 
-def decode_metadata(md: dict | None) -> tuple[dict, dict]:
-    """``(units, meta)`` from a Parquet schema's metadata (empty dicts where a key is missing)."""
+def decode_metadata(md: dict | None, source: str = "log") -> tuple[dict, dict]:
+    """``(units, meta)`` from a Parquet schema's metadata (empty dicts where a key is missing).
+
+    Raises
+    ------
+    rotorlab.errors.DataError
+        A key that is not a JSON object (naming ``source`` and the key).
+    """
+    from rotorlab.errors import DataError
+
     md = md or {}
-    units = json.loads(md[UNITS_KEY]) if UNITS_KEY in md else {}
-    meta = json.loads(md[META_KEY]) if META_KEY in md else {}
-    return units, meta
+    out = []
+    for key in (UNITS_KEY, META_KEY):
+        if key not in md:
+            out.append({})
+            continue
+        try:
+            val = json.loads(md[key])
+        except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
+            raise DataError(f"{source}: schema metadata '{key.decode()}': expected a JSON object; "
+                            f"got unreadable JSON ({exc})") from None
+        if not isinstance(val, dict):
+            raise DataError(f"{source}: schema metadata '{key.decode()}': expected a JSON object; "
+                            f"got {type(val).__name__}")
+        out.append(val)
+    return out[0], out[1]
 
 
 def _plain(o):

@@ -81,6 +81,7 @@ def write_run(out_dir, log: RunLog, info: dict) -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     info = {**info, "versions": versions(), "rows": log.n, "columns": log.units}
-    log.write(out / "log.parquet", meta={k: v for k, v in info.items() if k != "metrics"})
+    # the vehicle's absolute path stays out of the log: a seeded log is byte-identical wherever it is made
+    log.write(out / "log.parquet", meta={k: v for k, v in info.items() if k not in ("metrics", "vehicle_source")})
     atomic.write_json(out / "run.json", info)
     return out

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+import math
+import os
 import time
 from pathlib import Path
 
 
+from rotorlab import atomic
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import GainSet, load_gains
 from rotorlab.sim import scenarios
@@ -15,7 +18,7 @@ from rotorlab.sim.control.position import PositionGains
 from rotorlab.sim.control.statespace import StateSpaceController, as_controller_spec
 from rotorlab.sim.log import RunLog, write_run
 from rotorlab.sim.simulator import Simulator, vehicle_mixer
-from rotorlab.vehicles import DEFAULT_VEHICLE, gains_path, list_gains, load_vehicle
+from rotorlab.vehicles import DEFAULT_VEHICLE, gains_path, list_gains, load_vehicle, vehicle_provenance
 
 # Standard log columns (flight-software units); the pitch channel is named as the papers name it.
 BASE_COLUMNS = {
@@ -96,9 +99,50 @@ def controller_plugins(controller, fs: FlightSoftware) -> list:
     return out
 
 
+INTERRUPTED = "interrupted (Ctrl-C)"
+# Memory a run holds per control tick: the log's row (at most this many float64 columns) and, with
+# record_poses, every body pose, rotor thrust and tendon path (a few KiB for the shipped scenes). Checked
+# before anything is allocated: `--duration 1e7` asked for 78 GiB and died in numpy after minutes.
+LOG_BYTES_PER_TICK = 64 * 8
+POSE_BYTES_PER_TICK = 4096
+
+
+def memory_budget_bytes() -> int:
+    """Half of the memory the OS reports available now (MemAvailable; physical memory where that is unknown)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024 // 2
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") // 2
+    except (ValueError, OSError, AttributeError):
+        return 8 << 30
+
+
+def check_duration(duration_s, control_dt_s: float, record_poses: bool = False) -> int:
+    """Number of control ticks of a run of ``duration_s``; a ConfigError unless it is finite, at least one
+    control step, and its log fits in :func:`memory_budget_bytes`."""
+    if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
+        raise ConfigError(field="duration", expected="a finite duration > 0 s", got=duration_s)
+    n_ticks = int(round(duration_s / control_dt_s))
+    if n_ticks < 1:
+        raise ConfigError(field="duration", expected=f"at least one control step ({control_dt_s} s)", got=duration_s)
+    per_tick = LOG_BYTES_PER_TICK + (POSE_BYTES_PER_TICK if record_poses else 0)
+    need, budget = (n_ticks + 1) * per_tick, memory_budget_bytes()
+    if need > budget:
+        raise ConfigError(f"the log of {n_ticks} ticks needs about {need / 2**30:.3g} GiB, over half the "
+                          f"available memory ({budget / 2**30:.3g} GiB)", field="duration",
+                          expected=f"at most about {budget // per_tick * control_dt_s:.4g} s", got=duration_s)
+    return n_ticks
+
+
 def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None, gains=None, seed: int = 0,
                  duration_s: float | None = None, out=None, options: dict | None = None, progress: bool = False,
-                 sensor_noise: bool | None = None, record_poses: bool = False, controller=None) -> RunResult:
+                 sensor_noise: bool | None = None, record_poses: bool = False, controller=None,
+                 interruptible: bool = False) -> RunResult:
     """Run scenario ``name`` headless; write ``log.parquet`` and ``run.json`` into ``out`` when given.
 
     ``controller``: discrete controllers flown in place of the cascade on the commands they set (a
@@ -108,6 +152,9 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     A run that diverges (NaN, MuJoCo warning, rig stop, crash) stops early, keeps the log written so far and
     records the reason in ``run.json`` under ``stopped``. ``record_poses`` keeps the body poses, rotor thrusts,
     wind and tendon paths of every tick in ``RunResult.poses`` (for :func:`rotorlab.sim.rerun_log.record_run`).
+    ``interruptible`` (the CLI): Ctrl-C stops the run like a divergence, with ``stopped = INTERRUPTED``, and the
+    partial log is written; library callers and pipeline workers get the KeyboardInterrupt instead, so an
+    interrupted run can never pass for a finished one.
     """
     t_start = time.perf_counter()
     mod = scenarios.get(name)
@@ -117,8 +164,9 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
         raise ConfigError(f"scenario '{name}' runs in {list(mod.SCENES)}", field="scene", expected=list(mod.SCENES),
                           got=scene)
     duration_s = float(duration_s if duration_s is not None else mod.DURATION_S)
-    if not duration_s > 0:
-        raise ConfigError(field="duration", expected="a duration > 0 s", got=duration_s)
+    check_duration(duration_s, v.control_dt_s, record_poses)
+    if out is not None:  # before the simulation: a read-only folder must not cost the run
+        atomic.check_writable_dir(out, "run folder")
     gs = resolve_gains(v, gains)
     ctx = scenarios.Context(vehicle=v, scene=scene, gains=gs, seed=seed, duration_s=duration_s,
                             options=dict(options or {}), dt_s=v.control_dt_s)
@@ -141,10 +189,15 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
 
         poses = PoseTrack(sim, n_ticks + 1)
     t_loop = time.perf_counter()
-    stopped = _loop(sim, fs, log, n_ticks, setup, progress, poses)
+    try:
+        stopped = _loop(sim, fs, log, n_ticks, setup, progress, poses)
+    except KeyboardInterrupt:
+        if not interruptible:
+            raise
+        stopped = INTERRUPTED
     t_done = time.perf_counter()
     info = {
-        "scenario": name, "vehicle": v.name, "scene": scene, "seed": seed, "duration_s": duration_s,
+        "scenario": name, "vehicle": v.name, "vehicle_source": vehicle_provenance(v), "scene": scene, "seed": seed, "duration_s": duration_s,
         "gains": gs.name if gs else None, "gain_values": _gain_dict(gs), "control_dt_s": sim.control_dt_s,
         "physics_dt_s": float(sim.model.opt.timestep), "sensor_noise": noise, "stopped": stopped,
         "options": ctx.options, "notes": setup.notes,
@@ -206,4 +259,4 @@ def _gain_dict(gs: GainSet | None) -> dict | None:
     return {ax: {"outer": g.outer.as_dict(), "inner": g.inner.as_dict()} for ax, g in gs.axes.items()}
 
 
-__all__ = ["RunResult", "run_scenario", "resolve_gains", "make_flight_software", "controller_plugins", "BASE_COLUMNS"]
+__all__ = ["RunResult", "run_scenario", "check_duration", "INTERRUPTED", "resolve_gains", "make_flight_software", "controller_plugins", "BASE_COLUMNS"]

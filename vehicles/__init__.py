@@ -18,12 +18,34 @@ def list_vehicles() -> list[str]:
 
 
 def vehicle_path(name_or_path) -> Path:
+    """The vehicle TOML of a shipped vehicle name, a vehicle TOML path, or a vehicle folder (relative or absolute)
+    holding ``vehicle.toml``."""
     p = Path(name_or_path)
     if p.suffix == ".toml" and p.exists():
         return p
+    if p.is_dir() and (p / "vehicle.toml").is_file():
+        return p / "vehicle.toml"
     if (VEHICLES_DIR / str(name_or_path) / "vehicle.toml").exists():
         return VEHICLES_DIR / str(name_or_path) / "vehicle.toml"
+    if p.suffix == ".toml":
+        from rotorlab.errors import ConfigError
+
+        raise ConfigError("vehicle file not found", file=p)
     raise UnknownNameError("vehicle", str(name_or_path), list_vehicles())
+
+
+def vehicle_provenance(v: VehicleSpec) -> dict:
+    """Where a vehicle came from, for run.json: its name, file (absolute), the file's SHA-256 and whether it is
+    the shipped file unmodified (a modified copy keeps the shipped name but not the hash)."""
+    import hashlib
+
+    path = Path(v.path)
+    if not path.is_file():
+        return {"name": v.name, "path": None, "sha256": None, "shipped": False}
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    shipped = VEHICLES_DIR / v.name / "vehicle.toml"
+    same = shipped.is_file() and hashlib.sha256(shipped.read_bytes()).hexdigest() == digest
+    return {"name": v.name, "path": str(path.resolve()), "sha256": digest, "shipped": same}
 
 
 def load_vehicle(name_or_path, physics_dt_s: float | None = None) -> VehicleSpec:
@@ -43,4 +65,4 @@ def gains_path(vehicle: str, name: str) -> Path:
 
 
 __all__ = ["G0", "RHO_AIR", "RigSpec", "RotorSpec", "VehicleSpec", "DEFAULT_VEHICLE", "VEHICLES_DIR", "list_vehicles",
-           "load_vehicle", "parse_vehicle", "vehicle_path", "list_gains", "gains_path"]
+           "load_vehicle", "parse_vehicle", "vehicle_path", "vehicle_provenance", "list_gains", "gains_path"]

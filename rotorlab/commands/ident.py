@@ -10,6 +10,8 @@ header row; --column-map renames CSV columns, --resample interpolates uneven tim
 
 from __future__ import annotations
 
+from rotorlab.cli import positive_int
+
 METHODS = ("moesp", "pbsid", "lms-kung", "oe", "hinf-match")
 STRUCTURES = ("rate-tf", "rigid-rig", "pitch")
 
@@ -22,13 +24,13 @@ def add_parser(sub):
     p.add_argument("--method", required=True, choices=METHODS, help="identification method")
     p.add_argument("--input", required=True, help="input column(s), comma-separated")
     p.add_argument("--output", required=True, help="output column(s), comma-separated")
-    p.add_argument("--order", type=int, default=4, help="model order (black-box methods)")
-    p.add_argument("--horizon", type=int, default=40, help="MOESP block rows p (40 as published)")
-    p.add_argument("--past", type=int, default=11, help="PBSID past window, samples (11 as published)")
-    p.add_argument("--future", type=int, default=7, help="PBSID future window, samples (7 as published)")
-    p.add_argument("--taps", type=int, default=100, help="LMS impulse-response taps")
+    p.add_argument("--order", type=positive_int, default=4, help="model order (black-box methods)")
+    p.add_argument("--horizon", type=positive_int, default=40, help="MOESP block rows p (40 as published)")
+    p.add_argument("--past", type=positive_int, default=11, help="PBSID past window, samples (11 as published)")
+    p.add_argument("--future", type=positive_int, default=7, help="PBSID future window, samples (7 as published)")
+    p.add_argument("--taps", type=positive_int, default=100, help="LMS impulse-response taps")
     p.add_argument("--delay", default="0", help="input delay in samples, or 'auto' to estimate it")
-    p.add_argument("--max-delay", type=int, default=20, help="largest delay tried by --delay auto, samples")
+    p.add_argument("--max-delay", type=positive_int, default=20, help="largest delay tried by --delay auto, samples")
     p.add_argument("--structure", default="rate-tf", choices=STRUCTURES,
                    help="grey-box structure for oe / hinf-match (rate-tf: K(s+z)/(s^2+as+b))")
     p.add_argument("--column-map", action="append", default=[], metavar="OURS=FILE",
@@ -116,6 +118,11 @@ def run(args) -> int:
     from rotorlab.ident.metrics import simulate, vaf
     from rotorlab.ident.modelio import save_model
 
+    from pathlib import Path
+
+    from rotorlab.atomic import check_writable_dir
+
+    check_writable_dir(Path(args.out).parent, "folder of --out")
     u_cols = [c.strip() for c in args.input.split(",") if c.strip()]
     y_cols = [c.strip() for c in args.output.split(",") if c.strip()]
     cmap = parse_column_map(args.column_map)
@@ -150,8 +157,17 @@ def run(args) -> int:
                 raise CLIError(f"--delay must be a whole number of samples or 'auto', got {args.delay!r}") from None
             if delay < 0:
                 raise CLIError(f"--delay must be >= 0, got {delay}")
+            if delay > len(u) // 2:
+                # shifting by the delay leaves N - delay samples to identify from; past half the log the
+                # methods run for minutes on windows too short to mean anything
+                raise CLIError(f"--delay {delay} samples leaves {len(u) - delay} of the log's {len(u)} samples; "
+                               f"expected at most {len(u) // 2} (half the log)")
         disc, to_save = _identify(args, u, y, dt, delay)
         fit = vaf(y, simulate(disc, u, x0="estimate", y=y))
+        if not np.all(np.isfinite(fit)):
+            scale = float(np.nanmax(np.abs(np.concatenate([u.ravel(), y.ravel()]))))
+            raise DataError(f"{args.log}: identification failed numerically (VAF {fit}); expected signals of "
+                            f"moderate scale, got values up to {scale:.3g}; rescale the log")
         print(f"{args.method}: VAF on identification data {', '.join(f'{v:.2f} %' for v in fit)}")
         score = fit
         if cv_log is not None:

@@ -16,10 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
+from rotorlab.cli import positive_int, seed_int
+
 #: parameter -> default spread (distributions: rotorlab.sim.randomize; ``delay`` is its ``delay_s``)
 VARY = {"mass": 0.10, "inertia": 0.10, "delay": 0.02, "wind": 5.0}
 VARY_UNITS = {"mass": "relative", "inertia": "relative", "delay": "s", "wind": "m/s"}
 WIND_OPTION = {"gust": "mean_wind_mps", "hover": "wind_mps", "prbs-flight": "wind_mps"}
+
 
 
 def add_parser(sub):
@@ -30,15 +33,15 @@ def add_parser(sub):
     p.add_argument("scenario", help="scenario name (see rotorlab list)")
     p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name or vehicle TOML path")
     p.add_argument("--gains", default=None, help="gain set name or gains TOML (default: the vehicle's standard set)")
-    p.add_argument("--n", type=int, default=100, help="number of runs")
+    p.add_argument("--n", type=positive_int, default=100, help="number of runs")
     p.add_argument("--vary", default="mass,inertia,delay",
                    help="comma list of NAME or NAME=SPREAD, NAME from " +
                         ", ".join(f"{k} (spread {v:g} {VARY_UNITS[k]})" for k, v in VARY.items()))
     p.add_argument("--duration", type=float, default=None, help="run duration, s (default: the scenario's)")
-    p.add_argument("--seed", type=int, default=0, help="master seed of the parameter draws and the runs")
-    p.add_argument("--batch", type=int, default=50, help="runs per Parquet batch")
+    p.add_argument("--seed", type=seed_int, default=0, help="master seed of the parameter draws and the runs")
+    p.add_argument("--batch", type=positive_int, default=50, help="runs per Parquet batch")
     p.add_argument("--executor", default="local", help="local (processes), serial, dask or dask://HOST:PORT")
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: the executor's choice)")
+    p.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: the executor's choice)")
     p.add_argument("--out", default=None, help="output folder (default runs/montecarlo-SCENARIO-VEHICLE-seedN)")
     return p
 

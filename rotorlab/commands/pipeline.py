@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rotorlab.cli import positive_int, seed_int
+
 
 def add_parser(sub):
     from rotorlab.cli import describe
@@ -25,10 +27,10 @@ def add_parser(sub):
     p.add_argument("--tiny", action="store_true", help=argparse.SUPPRESS)  # tests: seconds per stage
     p.add_argument("--executor", default="local", help="local (process pool), serial, dask (local "
                                                         "cluster) or dask://HOST:PORT (existing scheduler)")
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: all cores)")
-    p.add_argument("--seed", type=int, default=0, help="master seed of every experiment, bootstrap and Monte Carlo")
-    p.add_argument("--n-boot", type=int, default=None, help="bootstrap replications (default 1000, quick 50)")
-    p.add_argument("--n-mc", type=int, default=None, help="Monte Carlo samples per gain set (default 1000, quick 100)")
+    p.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--seed", type=seed_int, default=0, help="master seed of every experiment, bootstrap and Monte Carlo")
+    p.add_argument("--n-boot", type=positive_int, default=None, help="bootstrap replications (default 1000, quick 50)")
+    p.add_argument("--n-mc", type=positive_int, default=None, help="Monte Carlo samples per gain set (default 1000, quick 100)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 
@@ -38,9 +40,20 @@ def run(args) -> int:
     from rotorlab.errors import RotorlabError
     from rotorlab.pipeline import PipelineOptions, run_pipeline
 
+    from rotorlab.vehicles import VEHICLES_DIR, load_vehicle
+
     level = "tiny" if args.tiny else ("quick" if args.quick else "full")
-    out = Path(args.out or f"runs/pipeline-{args.vehicle}{'' if level == 'full' else '-' + level}-seed{args.seed}")
-    opts = PipelineOptions(vehicle=args.vehicle, out=out, level=level, seed=args.seed, executor=args.executor,
+    vehicle = args.vehicle
+    try:
+        spec = load_vehicle(vehicle)
+    except RotorlabError as exc:
+        raise CLIError(str(exc)) from None
+    if not (VEHICLES_DIR / str(vehicle) / "vehicle.toml").is_file():
+        # a path: absolute, so every worker (a Dask worker may run elsewhere) reads the same file
+        vehicle = str(Path(vehicle).resolve())
+    # named by the vehicle's name, never its path (`--vehicle /tmp/x.toml` made runs/pipeline-/tmp/...)
+    out = Path(args.out or f"runs/pipeline-{spec.name}{'' if level == 'full' else '-' + level}-seed{args.seed}")
+    opts = PipelineOptions(vehicle=vehicle, out=out, level=level, seed=args.seed, executor=args.executor,
                            workers=args.workers, progress=not args.no_progress, n_boot=args.n_boot, n_mc=args.n_mc)
     try:
         run_pipeline(opts)

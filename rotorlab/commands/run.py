@@ -14,6 +14,9 @@ from pathlib import Path
 MAX_STEP_LINES = 16
 
 
+from rotorlab.cli import seed_int
+
+
 def add_parser(sub):
     from rotorlab.cli import describe
 
@@ -29,7 +32,7 @@ def add_parser(sub):
                         "(modified-pid, hinf-loopshaping, hinf-loopshaping-aw; TUHH) or a .json/.toml "
                         "state-space controller file (see rotorlab.sim.control.statespace)")
     p.add_argument("--duration", type=float, default=None, help="duration, s (default: the scenario's)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and the disturbances")
+    p.add_argument("--seed", type=seed_int, default=0, help="seed of the sensor noise and the disturbances")
     p.add_argument("--out", default=None, help="run folder (default runs/SCENARIO-VEHICLE-seedN)")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="scenario option (repeatable); values are parsed as TOML scalars or lists")
@@ -64,7 +67,7 @@ def summary_lines(res, rrd=None) -> list[str]:
 
     info, tm = res.info, res.timing
     sim_s = res.log.n * info["control_dt_s"]
-    loop_s = tm.get("sim_s", float("nan"))
+    loop_s = max(tm.get("sim_s", float("nan")), 1e-9)  # an interrupted run may have no closed-loop time
     ctl = ", ".join(c["name"] for c in info.get("controller", []))
     flown = f"controller {ctl} (cascade gains {info['gains'] or '-'} elsewhere)" if ctl else f"gains {info['gains'] or '-'}"
     L = [f"{info['scenario']} on {info['vehicle']} ({info['scene']}), {flown}, seed {info['seed']}",
@@ -105,9 +108,15 @@ def summary_lines(res, rrd=None) -> list[str]:
 def run(args) -> int:
     from rotorlab.cli import CLIError
     from rotorlab.errors import RotorlabError
-    from rotorlab.sim.runner import run_scenario
+    from rotorlab.sim.runner import INTERRUPTED, run_scenario
+    from rotorlab.vehicles import load_vehicle
 
-    out = Path(args.out or f"runs/{args.scenario}-{Path(str(args.vehicle)).stem}-seed{args.seed}")
+    try:
+        vehicle = load_vehicle(args.vehicle)
+    except RotorlabError as exc:
+        raise CLIError(str(exc)) from None
+    # the vehicle's own name, not its path: `--vehicle ../x/vehicle.toml` must not name the folder "vehicle"
+    out = Path(args.out or f"runs/{args.scenario}-{vehicle.name}-seed{args.seed}")
     rrd = None
     if args.rerun:
         from rotorlab.sim.rerun_log import check_rrd_path
@@ -125,9 +134,10 @@ def run(args) -> int:
             for c in args.controller:
                 r = resolve_controller(c, args.vehicle)
                 controller.extend(r if isinstance(r, list) else [r])
-        res = run_scenario(args.scenario, args.vehicle, scene=args.scene, gains=args.gains, seed=args.seed,
+        res = run_scenario(args.scenario, vehicle, scene=args.scene, gains=args.gains, seed=args.seed,
                            duration_s=args.duration, out=out, options=parse_options(args.option),
-                           progress=not args.json, record_poses=rrd is not None, controller=controller)
+                           progress=not args.json, record_poses=rrd is not None, controller=controller,
+                           interruptible=True)
         if rrd is not None:
             from rotorlab.sim.rerun_log import record_run
 
@@ -141,4 +151,6 @@ def run(args) -> int:
         print(json.dumps(doc, indent=1, allow_nan=False))
     else:
         print("\n".join(summary_lines(res, rrd)))
+    if res.stopped == INTERRUPTED:
+        return 130
     return 1 if res.stopped else 0

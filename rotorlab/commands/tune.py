@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rotorlab.cli import positive_int, seed_int
+
 
 def add_parser(sub):
     from rotorlab.cli import describe
@@ -21,11 +23,12 @@ def add_parser(sub):
     p.add_argument("--spec", required=True, help="spec TOML file or built-in name (anteos-p2a2, anteos-a2minib)")
     p.add_argument("--start", default="standard",
                    help="start gains: a gains TOML file or a gain-set name of the spec's vehicle")
-    p.add_argument("--out", required=True, help="gains TOML to write")
-    p.add_argument("--starts", type=int, default=1, help="number of starts (1: the start gains only)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the random starts")
-    p.add_argument("--jobs", type=int, default=1, help="processes for the starts")
-    p.add_argument("--max-iter", type=int, default=40, help="outer iterations per start")
+    p.add_argument("--out", required=True, help="gains TOML to write; when a hard goal fails nothing is written "
+                                                "there and the gains go to OUT.failed.toml, marked as failing")
+    p.add_argument("--starts", type=positive_int, default=1, help="number of starts (1: the start gains only)")
+    p.add_argument("--seed", type=seed_int, default=0, help="seed of the random starts")
+    p.add_argument("--jobs", type=positive_int, default=1, help="processes for the starts")
+    p.add_argument("--max-iter", type=positive_int, default=40, help="outer iterations per start")
     return p
 
 
@@ -35,15 +38,16 @@ def _start_gains(start: str, spec_path):
     p = Path(start)
     if p.suffix == ".toml" or p.exists():
         return load_gains(p)
-    import tomllib
 
     from rotorlab.cli import CLIError
     from rotorlab.errors import UnknownNameError
     from rotorlab.vehicles import VEHICLES_DIR
 
-    meta = tomllib.loads(Path(spec_path).read_text(encoding="utf-8")).get("meta", {})
+    from rotorlab.config import read_toml
+
+    meta = read_toml(spec_path, "spec").get("meta", {})
     vehicle = meta.get("vehicle")
-    if not vehicle:
+    if not vehicle or not isinstance(vehicle, str):
         raise CLIError(f"--start '{start}' is not a file and the spec names no [meta] vehicle to look it up in")
     gdir = VEHICLES_DIR / vehicle / "gains"
     valid = sorted(q.stem for q in gdir.glob("*.toml"))
@@ -53,6 +57,7 @@ def _start_gains(start: str, spec_path):
 
 
 def run(args) -> int:
+    from rotorlab import atomic
     from rotorlab.cli import CLIError
     from rotorlab.errors import RotorlabError
     from rotorlab.gains import save_gains
@@ -62,6 +67,7 @@ def run(args) -> int:
     from rotorlab.tune.spec import builtin_specs, load_spec
 
     try:
+        atomic.check_writable_dir(Path(args.out).parent, "folder of --out")  # before minutes of tuning
         spec = load_spec(args.spec)
         spec_path = builtin_specs().get(str(args.spec), args.spec)
         models = []
@@ -75,12 +81,27 @@ def run(args) -> int:
         raise CLIError(str(exc)) from None
     except ValueError as exc:
         raise CLIError(str(exc)) from None
-    save_gains(res.gains, args.out)
+    failed = [r for r in res.report if r.hard and not r.passed]
+    out = Path(args.out)
+    if failed:
+        # a gains file that misses a hard goal must never pass for a tuned one: it goes beside --out, its header
+        # says which goals failed, and --out is left as it was
+        out = out.with_name(out.stem + ".failed.toml")
+        header = (f"# FAILED: rotorlab tune did not meet {len(failed)} hard goal(s) of spec '{spec.name}': "
+                  + "; ".join(f"{r.goal} on {r.model}" for r in failed) + "\n# do not fly these gains\n")
+        atomic.write_text(out, header + res.gains.to_toml())
+    else:
+        save_gains(res.gains, out)
     g = res.gains[spec.axis]
     print(f"spec {spec.name}: {len(models)} model(s), {len(res.history) - 1} iterations, {res.time_s:.1f} s")
     print(f"outer PD : kp={g.outer.kp:.4f} kd={g.outer.kd:.4f} tf={g.outer.tf:.4f} b={g.outer.b:.4f} c={g.outer.c:.4f}")
     print(f"inner PID: kp={g.inner.kp:.4f} ki={g.inner.ki:.4f} kd={g.inner.kd:.4f} tf={g.inner.tf:.4f} "
           f"b={g.inner.b:.4f} c={g.inner.c:.4f}")
     print(format_report(res.report))
-    print(f"objective (max soft goal) {res.objective:.4f}; wrote {args.out}")
-    return 0 if all(r.passed for r in res.report if r.hard) else 1
+    if failed:
+        names = ", ".join(r.goal for r in failed)
+        print(f"objective (max soft goal) {res.objective:.4f}; HARD GOALS NOT MET ({names}): "
+              f"{args.out} not written; the gains are in {out}, marked as failing")
+        return 1
+    print(f"objective (max soft goal) {res.objective:.4f}; wrote {out}")
+    return 0

@@ -83,10 +83,39 @@ class Setup:
 
 
 def merged_options(ctx: Context, defaults: dict) -> dict:
-    """The scenario's options over its defaults; an unknown option is an error naming it and the valid ones."""
+    """The scenario's options over its defaults.
+
+    An unknown option is an error naming it and the valid ones; a given option must have its default's type
+    (a number where the default is a number, a list of numbers where it is such a list), and no number may be NaN
+    or infinite.
+    """
+    import difflib
+    import math
+
     unknown = sorted(set(ctx.options) - set(defaults))
     if unknown:
-        raise ConfigError(field=f"options.{unknown[0]}", expected=f"one of {sorted(defaults)}", got=unknown[0])
+        close = difflib.get_close_matches(unknown[0], sorted(defaults), n=1)
+        raise ConfigError(field=f"options.{unknown[0]}", expected=f"one of {sorted(defaults)}", got=unknown[0],
+                          hint=f"did you mean '{close[0]}'?" if close else None)
+
+    def number(x):
+        return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+    for key, val in ctx.options.items():
+        d = defaults[key]
+        items = val if isinstance(val, (list, tuple)) else [val]
+        if any(number(x) and not math.isfinite(x) for x in items):
+            raise ConfigError(field=f"options.{key}", expected="finite numbers", got=val)
+        if isinstance(d, bool):
+            ok, want = isinstance(val, bool), "true or false"
+        elif number(d):
+            ok, want = number(val), "a number"
+        elif isinstance(d, (list, tuple)) and all(number(x) for x in d):
+            ok, want = isinstance(val, (list, tuple)) and all(number(x) for x in val), "a list of numbers"
+        else:  # a name or None: the scenario checks the value itself
+            ok, want = True, ""
+        if not ok:
+            raise ConfigError(field=f"options.{key}", expected=want, got=val)
     return {**defaults, **ctx.options}
 
 
