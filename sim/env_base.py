@@ -19,9 +19,11 @@ costs one scene compile (tens of ms).
 from __future__ import annotations
 
 import collections
+import collections.abc
 import copy
 import dataclasses
 import math
+import numbers
 
 import gymnasium as gym
 import mujoco
@@ -53,11 +55,25 @@ class EnvState:
 def randomized_vehicle(v: VehicleSpec, spreads: dict, rng: np.random.Generator, physics_dt_s: float):
     """Draw one vehicle from ``spreads`` (:mod:`rotorlab.sim.randomize`); returns ``(vehicle, key)`` where ``key``
     is the hashable parameter set the compiled scene is cached under."""
+    if not isinstance(spreads, collections.abc.Mapping):
+        raise ConfigError(field="randomize", expected="a dict {parameter: spread}", got=spreads)
     out = randomize.apply(v, randomize.draw(v, spreads, rng, physics_dt_s, keys=RANDOMIZE_KEYS))
     key = (round(out.mass_kg, 12), tuple(round(j, 12) for j in out.inertia_kgm2),
            tuple(round(t, 12) for t in out.rotor.lag_s), tuple(round(d, 9) for d in out.rotor.delay_s),
            round(out.imu.mount_frequency_hz, 12))
     return out, key
+
+
+def _disturbances(dists, field: str) -> list:
+    """A list of disturbance objects (duck-typed on the Disturbance interface the simulator calls)."""
+    if isinstance(dists, (str, bytes, collections.abc.Mapping)) or not isinstance(dists, collections.abc.Iterable):
+        raise ConfigError(field=field, expected="a sequence of Disturbance objects", got=dists)
+    out = list(dists)
+    for i, d in enumerate(out):
+        if not all(callable(getattr(d, m, None)) for m in ("reset", "update", "values", "edit", "check_scene")):
+            raise ConfigError(field=f"{field}[{i}]", expected="a rotorlab.sim.disturbances Disturbance",
+                              got=type(d).__name__)
+    return out
 
 
 class RotorlabEnv(gym.Env):
@@ -92,6 +108,9 @@ class RotorlabEnv(gym.Env):
                  render_mode: str | None = None):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise UnknownNameError("render mode", str(render_mode), self.metadata["render_modes"])
+        for name, val in (("episode_s", episode_s), ("effort_weight", effort_weight)):
+            if isinstance(val, bool) or not isinstance(val, numbers.Real) or not math.isfinite(val):
+                raise ConfigError(field=name, expected="a finite number", got=val)
         if not episode_s > 0:
             raise ConfigError(field="episode_s", expected="an episode length > 0 s", got=episode_s)
         if not effort_weight >= 0:
@@ -103,8 +122,10 @@ class RotorlabEnv(gym.Env):
         self.episode_s = float(episode_s)
         self.effort_weight = float(effort_weight)
         self.privileged = bool(privileged)
+        if randomize is not None and not isinstance(randomize, collections.abc.Mapping):
+            raise ConfigError(field="randomize", expected="a dict {parameter: spread}", got=randomize)
         self._default_randomize = dict(randomize or {})
-        self._default_disturbances = list(disturbances)
+        self._default_disturbances = _disturbances(disturbances, "disturbances")
         self._cache: collections.OrderedDict = collections.OrderedDict()
         self._renderers: dict = {}
         self.sim = self._simulator(self.base_vehicle, None, self._default_disturbances)
@@ -112,6 +133,7 @@ class RotorlabEnv(gym.Env):
         self.control_dt_s = self.sim.control_dt_s
         self.n_steps = int(round(self.episode_s / self.control_dt_s))
         self._k = 0
+        self._ended = None
 
     # ------------------------------------------------------------------ simulators
     def _simulator(self, vehicle, key, disturbances) -> Simulator:
@@ -134,12 +156,14 @@ class RotorlabEnv(gym.Env):
         """Start an episode. ``options`` keys: ``randomize``, ``disturbances`` and the env's own
         (:attr:`valid_options`); an unknown key raises ``UnknownNameError`` listing the valid ones."""
         super().reset(seed=seed)
+        if options is not None and not isinstance(options, collections.abc.Mapping):
+            raise ConfigError(field="options", expected="a dict of reset options", got=options)
         options = dict(options or {})
         for k in options:
             if k not in self.valid_options:
                 raise UnknownNameError("reset option", k, self.valid_options)
         spreads = options.get("randomize", self._default_randomize)
-        dists = list(options.get("disturbances", self._default_disturbances))
+        dists = _disturbances(options.get("disturbances", self._default_disturbances), "options.disturbances")
         physics_dt = float(self.sim.model.opt.timestep)
         if spreads:
             v, key = randomized_vehicle(self.base_vehicle, spreads, self.np_random, physics_dt)
@@ -149,6 +173,7 @@ class RotorlabEnv(gym.Env):
         self.vehicle = self.sim.vehicle
         self.sim.reset(int(self.np_random.integers(2**31)))
         self._k = 0
+        self._ended = None
         self._start_episode(options)
         return self._observe(), self._info()
 
@@ -178,6 +203,9 @@ class RotorlabEnv(gym.Env):
         return self._base_options + self._extra_options
 
     def step(self, action):
+        if self._ended is not None:
+            # MuJoCo would keep integrating past the rig stop or the crash: an ended episode needs reset()
+            raise RuntimeError(f"the episode has ended ({self._ended}); call reset() before step()")
         # plain-Python checks: for 1-4 components they are several times cheaper than numpy calls, per step
         a = np.asarray(action, dtype=float).ravel().tolist()
         mid, half = self._a_mid, self._a_half
@@ -202,6 +230,9 @@ class RotorlabEnv(gym.Env):
         info["action_physical"] = phys
         if terminated:
             info["stopped"] = reason
+            self._ended = f"terminated: {reason}"
+        elif truncated:
+            self._ended = f"truncated after {self.n_steps} steps"
         return self._observe(), float(reward), terminated, truncated, info
 
     termination_penalty = 100.0
@@ -236,6 +267,7 @@ class RotorlabEnv(gym.Env):
             raise ConfigError(field="state", expected="an EnvState from save_state()", got=type(state).__name__)
         self.sim = s = state.sim
         self.vehicle = s.vehicle
+        self._ended = None
         m, d = s.model, s.data
         mujoco.mj_setState(m, d, state.physics, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         for w, n in zip(d.warning, state.warnings):

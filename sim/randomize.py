@@ -80,12 +80,15 @@ def check_spreads(spreads: dict, keys=KEYS, field: str = "randomize") -> dict:
 
 
 def _range(val, field):
+    from rotorlab.vehicles.spec import MAX_LAG_DELAY_S
+
     try:
         lo, hi = (float(x) for x in val)
     except (TypeError, ValueError):
         raise ConfigError(field=field, expected="a (low, high) pair", got=val) from None
-    if not 0.0 <= lo <= hi:
-        raise ConfigError(field=field, expected="0 <= low <= high", got=val)
+    # the vehicle file's own bound on a delay: (10, 20) s was accepted and built a 20 000-step delay buffer
+    if not 0.0 <= lo <= hi <= MAX_LAG_DELAY_S:
+        raise ConfigError(field=field, expected=f"0 <= low <= high <= {MAX_LAG_DELAY_S} s", got=val)
     return lo, hi
 
 

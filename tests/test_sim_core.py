@@ -70,7 +70,7 @@ def test_negative_mass_names_file_field_expected_got(tmp_path):
     with pytest.raises(ConfigError) as exc:
         load_vehicle(p)
     msg = str(exc.value)
-    assert str(p) in msg and "airframe.mass_kg" in msg and "> 0" in msg and "-5.0" in msg
+    assert str(p) in msg and "airframe.mass_kg" in msg and "[0.001, 1000.0]" in msg and "-5.0" in msg
 
 
 def test_missing_field_is_named(tmp_path):
