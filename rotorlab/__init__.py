@@ -10,6 +10,17 @@ Importing this package stays light: nothing here imports MuJoCo, so ``rotorlab.i
 
 __version__ = "0.1.0"
 
+# One BLAS thread per process, set before numpy or scipy load their BLAS (this package's import is the earliest
+# point rotorlab controls). Parallel work goes through rotorlab.executor, one task per process; a task's numbers
+# must not depend on where it ran, and a multi-threaded BLAS splits its reductions by thread count: the main
+# process and forked pool workers (threads = cores) and Dask workers (one thread) differed by up to 1.6e-10.
+# setdefault: a user may ask for more threads and give up bit-identical numbers across executors.
+import os as _os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    _os.environ.setdefault(_var, "1")
+del _os, _var
+
 # Gymnasium environments (rotorlab issue 7): registered by entry-point string, so MuJoCo loads only on make().
 try:
     import gymnasium as _gym

@@ -80,6 +80,14 @@ class SerialExecutor(Executor):
         return out
 
 
+def _ignore_sigint():
+    """Pool-worker initializer: Ctrl-C reaches the whole process group, and only the parent should handle it
+    (it stops the workers); otherwise every worker printed its own KeyboardInterrupt traceback."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 class LocalExecutor(Executor):
     """Process pool on this machine. Forked workers (Linux) start in milliseconds and inherit the imports."""
 
@@ -96,12 +104,25 @@ class LocalExecutor(Executor):
         if self.workers == 1 or len(items) <= 1:
             return SerialExecutor().map(fn, items, desc=desc, progress=progress)
         if self._pool is None:
-            self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx)
+            self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx,
+                                                initializer=_ignore_sigint)
         futs = [self._pool.submit(fn, it) for it in items]
-        with _bar(len(items), desc, progress) as bar:
-            for f in cf.as_completed(futs):
-                bar.update(1)
+        try:
+            with _bar(len(items), desc, progress) as bar:
+                for f in cf.as_completed(futs):
+                    bar.update(1)
+        except KeyboardInterrupt:
+            self._terminate()
+            raise
         return [f.result() for f in futs]
+
+    def _terminate(self):
+        """Stop the workers now (Ctrl-C): the pool's shutdown would first finish every running task."""
+        pool, self._pool = self._pool, None
+        # the pool exposes its processes only privately; terminating them is the documented way to stop a task
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
 
     def close(self):
         if self._pool is not None:

@@ -231,6 +231,27 @@ def test_disk_full_during_a_stage_leaves_no_final_file(run, tmp_path, monkeypatc
     assert _summary(out)["h_lim"] == _summary(run[0])["h_lim"]
 
 
+def test_corrupted_cached_stages_are_recomputed(run, tmp_path):
+    """Issue 15 item 4: a cached stage is reused only while its files hash to the output hash recorded when it was
+    committed. Garbage in summary.json and kp = 1000 edited into tuned.toml are detected and recomputed; the
+    validation (whose inputs then hash the same again) stays cached and never flies the edited gains."""
+    out = tmp_path / "run"
+    shutil.copytree(run[0], out)
+    tuned = stage_dir(out, "tune") / "tuned.toml"
+    good_gains = tuned.read_bytes()
+    tuned.write_text(tuned.read_text().replace("kp = ", "kp = 1000.0\n# kp = ", 1))
+    (stage_dir(out, "report") / "summary.json").write_text("{garbage")
+    lines = []
+    run_pipeline(PipelineOptions(vehicle="anteos-p2a2", out=out, level=LEVEL, seed=3, executor="serial",
+                                 progress=False), log=lines.append)
+    status = {ln.split()[1]: ln.split()[2] for ln in lines if ln.startswith("[")}
+    assert status["tune"] == "done" and status["report"] == "done"
+    assert status["experiments"] == status["validate"] == "cached"
+    assert sum("output hash mismatch" in ln for ln in lines) == 2
+    assert tuned.read_bytes() == good_gains
+    assert _summary(out)["h_lim"] == _summary(run[0])["h_lim"]
+
+
 def test_older_run_folder_is_refused(tmp_path):
     out = tmp_path / "old"
     out.mkdir()

@@ -47,7 +47,11 @@ def stage_result(out, stage: str) -> dict:
     p = stage_dir(out, stage) / "stage.json"
     if not p.exists():
         raise PipelineError(f"stage '{stage}' has not completed in {out}")
-    return json.loads(p.read_text())["result"]
+    try:
+        return json.loads(p.read_text(encoding="utf-8"))["result"]
+    except (ValueError, UnicodeDecodeError, KeyError, TypeError) as exc:
+        raise PipelineError(f"{p}: damaged stage record ({type(exc).__name__}: {exc}); run the pipeline again "
+                            "into this folder to recompute the stage") from None
 
 
 def read_manifest(out) -> dict | None:
@@ -71,8 +75,12 @@ def write_log(path: Path, columns: dict, units: dict, meta: dict) -> None:
 
 
 def read_log(path: Path) -> dict[str, np.ndarray]:
-    """Columns of a Parquet log by name."""
-    tbl = pq.read_table(path)
+    """Columns of a Parquet log by name; a missing or damaged file is a PipelineError naming it."""
+    try:
+        tbl = pq.read_table(path)
+    except (OSError, pa.ArrowException) as exc:  # ArrowInvalid for a truncated file
+        raise PipelineError(f"{path}: not a readable Parquet log ({exc}); run the pipeline again into this folder "
+                            "to recompute the stage that wrote it") from None
     return {k: tbl.column(k).to_numpy() for k in tbl.column_names}
 
 

@@ -11,9 +11,13 @@ the same numbers (seeds per task).
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import json
+import os
 import shutil
+import socket
 import time
 from pathlib import Path
 
@@ -24,7 +28,9 @@ from rotorlab.pipeline.settings import FORMAT_VERSION, PipelineError, PipelineOp
 from rotorlab.pipeline.stages import REGISTRY, STAGES
 from rotorlab.vehicles import load_vehicle, vehicle_path
 
-__all__ = ["run_pipeline", "stage_hash", "dir_hash"]
+__all__ = ["run_pipeline", "stage_hash", "dir_hash", "run_folder_lock", "LOCK_NAME"]
+
+LOCK_NAME = ".rotorlab.lock"
 
 
 def _sha(obj) -> str:
@@ -45,8 +51,11 @@ def dir_hash(path: Path) -> str:
         rel = f.relative_to(path).as_posix()
         h.update(rel.encode())
         if rel == "stage.json":
-            doc = json.loads(f.read_text())
-            h.update(json.dumps(doc.get("result"), sort_keys=True).encode())
+            try:
+                doc = json.loads(f.read_text(encoding="utf-8"))
+                h.update(json.dumps(doc.get("result"), sort_keys=True).encode())
+            except (ValueError, UnicodeDecodeError, AttributeError):  # a damaged stage.json hashes as its bytes
+                h.update(f.read_bytes())
         else:
             h.update(f.read_bytes())
     return h.hexdigest()
@@ -60,12 +69,39 @@ def stage_hash(stage: str, opts: PipelineOptions, s: dict, fingerprint: dict, up
                  "settings": {k: s[k] for k in REGISTRY[stage].settings}, "upstream": upstream_hashes})
 
 
+@contextlib.contextmanager
+def run_folder_lock(out: Path):
+    """Hold the run folder ``out`` for one pipeline: a second pipeline into the same folder is refused.
+
+    An advisory ``flock`` on ``OUT/.rotorlab.lock``: the kernel releases it when the holder exits in any way
+    (Ctrl-C, SIGKILL, a crash), so a lock is never stale and needs no clean-up; the file itself may stay.
+    It records the holder's pid, host and start time for the refusal message. Without it two runs shared
+    ``stages/.<stage>.partial`` and committed a stage holding only the other's stage.json, for good.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / LOCK_NAME
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 512, 0).decode("utf-8", "replace").strip() or "another process"
+            raise PipelineError(f"{out} is in use by another rotorlab pipeline ({holder}); wait for it to finish "
+                                "or choose another --out folder") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}, started "
+                      f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n".encode(), 0)
+        yield path
+    finally:
+        os.close(fd)  # releases the flock
+
+
 def _open_run_folder(out: Path, vehicle: str) -> dict:
     """The manifest of ``out`` (a fresh one for a new or empty folder), refusing a folder that is not a
-    compatible run of ``vehicle``. The one place a run opens its folder: the run-folder lock belongs here."""
+    compatible run of ``vehicle``. Called with the run-folder lock held."""
     man = read_manifest(out)
     if man is None:
-        if out.exists() and any(out.iterdir()):
+        if out.exists() and any(p.name != LOCK_NAME for p in out.iterdir()):
             raise PipelineError(f"{out} exists and is not a rotorlab pipeline run folder (no manifest.json); "
                                 "choose an empty or new --out folder")
         return {"format": "rotorlab-pipeline", "format_version": FORMAT_VERSION, "rotorlab_version": __version__,
@@ -83,11 +119,27 @@ def _open_run_folder(out: Path, vehicle: str) -> dict:
     return man
 
 
-def _is_cached(final: Path, h: str) -> bool:
-    """Whether the committed stage folder ``final`` was built from inputs hashing to ``h``. The one place a
-    cached stage is trusted: verifying its files against the manifest's output hash belongs here."""
+def _is_cached(final: Path, h: str, committed: dict | None, log=print) -> bool:
+    """Whether the committed stage folder ``final`` was built from inputs hashing to ``h`` and its files are
+    still the ones committed: their hash must equal the ``output_hash`` recorded in stage.json at the commit and
+    in the manifest (``committed``, its entry for the stage, when it has one). A stage whose files were edited,
+    truncated or half-overwritten is reported and recomputed, never reused."""
     done = final / "stage.json"
-    return done.exists() and json.loads(done.read_text()).get("hash") == h
+    if not done.exists():
+        return False
+    try:
+        doc = json.loads(done.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError):
+        log(f"  {done} is not readable JSON: recomputing the stage")
+        return False
+    if not isinstance(doc, dict) or doc.get("hash") != h:
+        return False
+    same_inputs = isinstance(committed, dict) and committed.get("hash") == h  # not an entry of an older run
+    recorded = {doc.get("output_hash")} | ({committed.get("output_hash")} if same_inputs else set())
+    if recorded != {dir_hash(final)}:
+        log(f"  {final}: files differ from those committed (output hash mismatch): recomputing the stage")
+        return False
+    return True
 
 
 def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
@@ -98,6 +150,15 @@ def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
     load_vehicle(opts.vehicle)  # unknown vehicle -> UnknownNameError listing the valid ones, before any work
     s = settings_for(opts.level, opts.n_boot, opts.n_mc)
     out = Path(opts.out)
+    if out.exists() and not out.is_dir():
+        raise PipelineError(f"--out {out} is a file; expected a run folder")
+    _open_run_folder(out, opts.vehicle)  # refuse a foreign or incompatible folder before writing anything into it
+    atomic.check_writable_dir(out, "run folder")  # before any work: a read-only --out must not cost a stage
+    with run_folder_lock(out):
+        return _run_locked(opts, s, out, stages, log)
+
+
+def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log) -> dict:
     man = _open_run_folder(out, opts.vehicle)
     man.update(seed=opts.seed, level=opts.level, settings=s)
     out.mkdir(parents=True, exist_ok=True)
@@ -116,7 +177,7 @@ def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
             ups = {u: out_hashes.get(u) or (dir_hash(stage_dir(out, u)) if stage_dir(out, u).exists() else None)
                    for u in REGISTRY[stage].upstream}
             h = stage_hash(stage, opts, s, fp, ups)
-            if _is_cached(final, h):
+            if _is_cached(final, h, man["stages"].get(stage), log):
                 out_hashes[stage] = dir_hash(final)
                 log(f"[{i}/{len(STAGES)}] {stage:<12} cached ({final})")
                 continue
@@ -129,11 +190,13 @@ def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
             t0 = time.perf_counter()
             result = REGISTRY[stage].run(StageContext(run, work, opts, s, executor))
             dt_s = time.perf_counter() - t0
-            atomic.write_json(work / "stage.json", {"stage": stage, "hash": h, "seconds": dt_s, "upstream": ups,
-                                                    "result": result})
+            doc = {"stage": stage, "hash": h, "seconds": dt_s, "upstream": ups, "result": result}
+            atomic.write_json(work / "stage.json", doc)
+            # dir_hash reads only the result from stage.json, so recording the output hash there leaves it unchanged
+            out_hashes[stage] = dir_hash(work)
+            atomic.write_json(work / "stage.json", {**doc, "output_hash": out_hashes[stage]})
             shutil.rmtree(final, ignore_errors=True)
             work.rename(final)  # the commit point: a stage folder either is complete or does not exist
-            out_hashes[stage] = dir_hash(final)
             man["stages"][stage] = {"hash": h, "output_hash": out_hashes[stage], "seconds": round(dt_s, 3)}
             atomic.write_json(out / "manifest.json", man)
             log(f"[{i}/{len(STAGES)}] {stage:<12} done in {dt_s:.1f} s")
