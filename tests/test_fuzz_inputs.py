@@ -103,6 +103,8 @@ def mutated(draw, base: dict):
     doc = json.loads(json.dumps(base))  # deep copy (the shipped files hold only JSON-able values)
     for _ in range(draw(st.integers(1, 3))):
         paths = _paths(doc)
+        if not paths:  # everything deleted already
+            break
         container, key = draw(st.sampled_from(paths))
         action = draw(st.sampled_from(["replace", "delete", "typo", "add"]))
         if action == "replace":
