@@ -119,7 +119,7 @@ class LocalExecutor(Executor):
     def _terminate(self):
         """Stop the workers now (Ctrl-C): the pool's shutdown would first finish every running task."""
         pool, self._pool = self._pool, None
-        # the pool exposes its processes only privately; terminating them is the documented way to stop a task
+        # the pool has no public way to stop running tasks: its processes (a private attribute) are terminated
         for proc in list((getattr(pool, "_processes", None) or {}).values()):
             proc.terminate()
         pool.shutdown(wait=False, cancel_futures=True)
