@@ -51,7 +51,8 @@ def test_wdelta_bounds_bootstrap_like_spread_continuous_and_discrete():
     W = fit_wdelta(G, reps, w)
     spread = additive_spread(G, reps, w)
     ratio = np.abs(lti.freqresp(W, w)[:, 0, 0]) / spread
-    assert ratio.min() >= 1.0 - 1e-9 and np.median(ratio) < 1.3
+    # an upper bound, and the least conservative one the order allows: about 5 % above the spread
+    assert ratio.min() >= 1.0 - 1e-9 and np.median(ratio) < 1.1
     # discrete: same data sampled at 50 Hz; W_delta comes back discrete, poles/zeros inside the unit circle
     Gd, repsd = lti.c2d_zoh(G, DT), [lti.c2d_zoh(r, DT) for r in reps]
     wd = np.geomspace(0.1, 150, 120)
@@ -59,7 +60,7 @@ def test_wdelta_bounds_bootstrap_like_spread_continuous_and_discrete():
     assert Wd.dt == DT
     assert np.all(np.abs(Wd.poles()) < 1) and np.all(np.abs(ct.zeros(Wd)) < 1)
     ratio = np.abs(lti.freqresp(Wd, wd)[:, 0, 0]) / additive_spread(Gd, repsd, wd)
-    assert ratio.min() >= 1.0 - 1e-9 and np.median(ratio) < 1.3
+    assert ratio.min() >= 1.0 - 1e-9 and np.median(ratio) < 1.1
 
 
 def test_h_lim_analytic_single_loop():

@@ -94,7 +94,8 @@ def worst_case_delta(W_delta, V_nom, h: float) -> ct.StateSpace:
     gain ``V_nom W_delta Delta`` real and positive there.
 
     With ``G = G_nom + W_delta Delta`` and ``V_nom`` the transfer from a signal added to the plant output to
-    its input (:func:`rotorlab.tune.robust.control_sensitivity`, sign included), the perturbed loop is
+    the input of ``Delta`` (:func:`rotorlab.tune.robust.control_sensitivity`, sign included; an input delay
+    in front of ``G_nom + W_delta Delta`` belongs in ``V_nom`` here, since it turns the phase), the perturbed loop is
     ``1 - V_nom W_delta Delta``; at ``w0`` it reads ``1 - h / h_lim``. Scaling ``Delta`` from 0 to ``h`` moves
     a closed-loop pole across the boundary at ``w0`` when the scale passes ``h_lim``, so ``h`` just above
     ``h_lim`` destabilises the loop: the small-gain bound is tight. The all-pass keeps ``|Delta| = h`` at

@@ -165,12 +165,14 @@ class RunFolder:
         """The twin's true rate model the identify stage stored (``control.StateSpace``)."""
         return load_model(self.model_path("truth"))[0]
 
-    def w_delta_path(self) -> Path:
-        return self.stage_dir("bootstrap") / "w_delta.json"
+    def w_delta_path(self, which: str = "testbed") -> Path:
+        """``W_delta`` of the test-bed model (``which='testbed'``) or of the in-flight model (``'flight'``)."""
+        return self.stage_dir("bootstrap") / ("w_delta.json" if which == "testbed" else f"w_delta-{which}.json")
 
-    def w_delta(self):
-        """The bootstrap stage's uncertainty weight ``W_delta`` (``control.StateSpace``)."""
-        return load_model(self.w_delta_path())[0]
+    def w_delta(self, which: str = "testbed"):
+        """The bootstrap stage's uncertainty weight ``W_delta`` (``control.StateSpace``) of the test-bed or the
+        in-flight model."""
+        return load_model(self.w_delta_path(which))[0]
 
     def replicas_path(self) -> Path:
         return self.stage_dir("bootstrap") / "replicas.npz"

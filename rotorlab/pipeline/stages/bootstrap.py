@@ -1,5 +1,6 @@
 """Stage 3, bootstrap: parametric bootstrap of the PBSID model and the additive-uncertainty weight
-``W_delta`` bounding its spread (ref. 000)."""
+``W_delta`` bounding its spread (ref. 000); the same for the in-flight PBSID model when the campaign has a
+flight run, so the in-flight h_lim uses the flight model's own uncertainty."""
 
 from __future__ import annotations
 
@@ -24,8 +25,15 @@ BAND_LEVEL = 0.95
 
 
 def bode_grid(n: int = 200) -> np.ndarray:
-    """``n`` log-spaced frequencies (rad/s) from 0.1 rad/s to 90 % of the 50 Hz Nyquist frequency."""
-    return np.logspace(-1, math.log10(0.9 * math.pi / DT_S), n)
+    """``n`` log-spaced frequencies (rad/s) from 0.1 rad/s to the 50 Hz Nyquist frequency (h_lim takes the
+    norm over the whole band, so W_delta must bound the spread up to Nyquist)."""
+    return np.logspace(-1, math.log10(math.pi / DT_S), n)
+
+
+def _identify(settings: dict):
+    """PBSID with the stored settings of an identified model (picklable for the workers)."""
+    return functools.partial(pbsid, order=settings["order"], past=settings["past"], future=settings.get("future"),
+                             dt=DT_S, delay=settings["delay"])
 
 
 def run(ctx: StageContext) -> dict:
@@ -34,13 +42,12 @@ def run(ctx: StageContext) -> dict:
         raise PipelineError("the bootstrap needs the PBSID model: " + ident["skipped"].get("pbsid", "missing"))
     st = ident["models"]["pbsid"]["settings"]
     log = ctx.run.experiment_log("id")
-    identify = functools.partial(pbsid, order=st["order"], past=st["past"], future=st.get("future"), dt=DT_S,
-                                 delay=st["delay"])
-    br = bootstrap(log["u_lon"], log["q"], identify, n_boot=ctx.settings["n_boot"], seed=ctx.seed,
+    br = bootstrap(log["u_lon"], log["q"], _identify(st), n_boot=ctx.settings["n_boot"], seed=ctx.seed,
                    n_jobs=ctx.executor.workers, progress=ctx.opts.progress)
     w = bode_grid(N_BODE)
     W = fit_wdelta(br.nominal.sys, [m.sys for m in br.models], w, order=W_DELTA_ORDER)
     save_model(ctx.work / "w_delta.json", W, input=["delta"], output=["q"])
+    flight = _flight(ctx, w)
     band = br.band(w, BAND_LEVEL)
     stack = {k: np.stack([np.asarray(getattr(m.sys, k), float) for m in br.models]) for k in "ABCD"}
     np.savez(ctx.work / "replicas.npz", w_rad_s=w, mag_lo=band["mag_lo"][:, 0, 0], mag_hi=band["mag_hi"][:, 0, 0],
@@ -51,7 +58,28 @@ def run(ctx: StageContext) -> dict:
     return {"model": "pbsid", "n_boot": ctx.settings["n_boot"], "order": int(st["order"]),
             "w_delta_order": int(W.nstates), "w_delta_peak": float(Wmag.max()), "w_delta_dc": float(Wmag[0]),
             "poles_c_median": [[float(z.real), float(z.imag)] for z in np.median(br.poles_continuous().real, 0)
-                               + 1j * np.median(np.abs(br.poles_continuous().imag), 0)]}
+                               + 1j * np.median(np.abs(br.poles_continuous().imag), 0)],
+            **({"flight": flight} if flight else {})}
+
+
+def _flight(ctx: StageContext, w) -> dict | None:
+    """Bootstrap of the in-flight PBSID model on the flight record, with the settings it was identified
+    with (ref. 000 gives in-flight h_lim from the flight model's uncertainty, not the test-bed's)."""
+    if not ctx.run.model_path("pbsid-flight").exists() or not ctx.run.experiment_log_path("flight").exists():
+        return None
+    st = ctx.run.identified("pbsid-flight").settings
+    log = ctx.run.experiment_log("flight")
+    # an independent seed: the flight bootstrap's innovations share nothing with the test-bed's
+    br = bootstrap(log["u_lon"], log["q"], _identify(st), n_boot=ctx.settings["n_boot"],
+                   seed=int(np.random.SeedSequence([ctx.seed, 1]).generate_state(1)[0]), n_jobs=ctx.executor.workers,
+                   progress=ctx.opts.progress)
+    W = fit_wdelta(br.nominal.sys, [m.sys for m in br.models], w, order=W_DELTA_ORDER)
+    save_model(ctx.work / "w_delta-flight.json", W, input=["delta"], output=["q"])
+    Wmag = np.abs(freqresp(W, w)[:, 0, 0])
+    spread = additive_spread(br.nominal.sys, [m.sys for m in br.models], w)
+    np.savez(ctx.work / "replicas-flight.npz", w_rad_s=w, spread=spread)
+    return {"model": "pbsid-flight", "order": int(st["order"]), "w_delta_peak": float(Wmag.max()),
+            "w_delta_dc": float(Wmag[0])}
 
 
 STAGE = Stage("bootstrap", upstream=("experiments", "identify"), settings=("n_boot",), run=run)

@@ -145,7 +145,11 @@ def _fig_spectrum(ctx: StageContext, figs: Path):
     for col, lab in (("u_lon", "input u_lon [%]"), ("q", "output q [deg/s]")):
         f, p = welch(log[col], fs=1 / DT_S, nperseg=512)
         ax.loglog(2 * np.pi * f[1:], p[1:], label=lab)
-    ax.axvspan(4, 8, color="0.85", label="target band 4-8 rad/s")
+    exc = ctx.run.result("experiments").get("excitation", {})
+    lo, hi = exc.get("band_rad_s", (4.0, 8.0))
+    frac = exc.get("band_fraction")
+    ax.axvspan(lo, hi, color="0.85", label=f"campaign band {lo:g}-{hi:g} rad/s" +
+               (f" ({frac:.0%} of the input power)" if frac is not None else ""))
     ax.set_xlabel("frequency [rad/s]"), ax.set_ylabel("PSD"), ax.legend(), ax.set_title("PRBS campaign spectrum")
     return _save(fig, figs / "prbs_spectrum.png")
 
@@ -268,8 +272,11 @@ def write_report(ctx: StageContext) -> dict:
         "model_grids": {k: m.get("grid") for k, m in ident["models"].items() if m.get("grid")},
         "nominal_model": ident["nominal"], "flight": ident.get("flight", {}), "bootstrap": boot,
         "gains": tune["gains"], "tuning": tune["tuning"], "goals": tune["goals"], "designs": tune.get("designs"),
-        "h_lim": tune["h_lim"], "step": tune["step"],
-        "h_lim_flight": tune.get("h_lim_flight", {}), "montecarlo": tune["montecarlo"],
+        "excitation": exp.get("excitation", {}),
+        "h_lim": tune["h_lim"], "h_lim_peak_rad_s": tune.get("h_lim_peak_rad_s", {}),
+        "h_lim_low_frequency_bound": tune.get("h_lim_low_frequency_bound", {}), "step": tune["step"],
+        "h_lim_flight": tune.get("h_lim_flight", {}), "h_lim_flight_peak_rad_s": tune.get("h_lim_flight_peak_rad_s", {}),
+        "montecarlo": tune["montecarlo"],
         "transfer": tune.get("transfer", {}), "validation": validation, "compared_set": tuned,
         "comparison": compare_sets(validation, "standard", tuned) if tuned else {},
         "skipped": {**{f"identify.{k}": v for k, v in ident.get("skipped", {}).items()},
@@ -388,8 +395,16 @@ def headline_rows(s) -> tuple[list, list]:
         if any(v is not None for v in vals.values()):
             add(label, vals, lower)
     add("model: robust-stability limit h_lim (higher is better)", s["h_lim"], False, "{:.3f}")
-    add("model: Monte Carlo at h_lim, unstable fraction", {n: s["montecarlo"].get(n, {}).get("fraction_unstable")
-                                                           for n in sets}, True, "{:.2f}")
+    add("model: in-flight h_lim, flight model's own W_delta (higher is better)", s.get("h_lim_flight", {}), False,
+        "{:.3f}")
+    for lvl in _mc_levels(s):
+        add(f"model: Monte Carlo at {lvl} x h_lim, unstable fraction",
+            {n: _mc_level(s, n, lvl).get("fraction_unstable") for n in sets}, True, "{:.2f}")
+    wc = {n: s["montecarlo"].get(n, {}).get("worst_case") for n in sets}
+    if any(wc.values()):
+        scale = next(w["scale"] for w in wc.values() if w)
+        rows.append([f"model: worst-case all-pass Delta at {scale:g} x h_lim destabilises"] +
+                    [("yes" if w["unstable"] else "**no**") if w else "-" for w in wc.values()] + ["", ""])
     add("model: linear set-point step rise time [s]", {n: s["step"].get(n, {}).get("rise_s") for n in sets}, True)
     if s.get("goals"):
         hard = {n: ("all met" if all(r["passed"] for r in g if r["hard"]) else
@@ -399,6 +414,15 @@ def headline_rows(s) -> tuple[list, list]:
         soft = {n: max((r["value"] for r in g if not r["hard"]), default=None) for n, g in s["goals"].items()}
         add("model: worst soft goal (tuning objective, <= 1 passes)", soft, True, "{:.3f}")
     return ["metric"] + sets + [f"{cmp_} vs standard", "verdict"], rows
+
+
+def _mc_levels(s) -> list[str]:
+    """Monte Carlo levels (multiples of h_lim, as keys) present in the summary, in their stored order."""
+    return list(next((m.get("levels", {}) for m in s["montecarlo"].values()), {}))
+
+
+def _mc_level(s, name: str, lvl: str) -> dict:
+    return s["montecarlo"].get(name, {}).get("levels", {}).get(lvl, {})
 
 
 def _headline(s) -> list[str]:
@@ -426,6 +450,12 @@ def _markdown(s: dict) -> str:
     L += _table(["run", "kind", "scene", "duration [s]", "std u [%]", "std q [deg/s]", "max |theta| [deg]", "stopped"],
                 [[k, r["kind"], r["scene"], _f(r["duration_s"]), _f(r["u_std_pct"]), _f(r["q_std_dps"]),
                   _f(r["theta_max_abs_deg"]), r["stopped"] or "-"] for k, r in s["experiments"]["runs"].items()])
+    ex = s.get("excitation") or {}
+    if ex:
+        lo, hi = ex["band_rad_s"]
+        L += ["", f"Identification input: **{ex['band_fraction']:.0%}** of its power in the campaign band "
+                  f"{lo:g}-{hi:g} rad/s (ref. 000 aimed the PRBS at the dominant attitude dynamics)." +
+              (f" **Warning: {ex['warning']}.**" if ex.get("warning") else "")]
     if "spectrum" in s["figures"]:
         L += ["", f"![PRBS spectrum]({s['figures']['spectrum']})"]
     L += ["", "## 2. Identification", "",
@@ -460,7 +490,9 @@ def _markdown(s: dict) -> str:
     L += ["", "## 3. Bootstrap uncertainty", "",
           f"{b['n_boot']} parametric bootstrap replications of PBSID (n={b['order']}); order-{b['w_delta_order']} "
           f"W_delta bounding the additive spread: peak |W_delta| = {b['w_delta_peak']:.3g}, "
-          f"low-frequency |W_delta| = {b['w_delta_dc']:.3g}."]
+          f"low-frequency |W_delta| = {b['w_delta_dc']:.3g} (fitted from 0.1 rad/s to Nyquist)." +
+          (f" In-flight PBSID model (n={b['flight']['order']}), its own bootstrap: peak |W_delta| = "
+           f"{b['flight']['w_delta_peak']:.3g}, low-frequency {b['flight']['w_delta_dc']:.3g}." if b.get("flight") else "")]
     t = s["tuning"]
     L += ["", "## 4. Tuning, robust stability and Monte Carlo", ""]
     if "spec" in t:
@@ -472,13 +504,28 @@ def _markdown(s: dict) -> str:
     else:
         L += [f"Tuning: {t['status']}.", ""]
     L += _table(["gain set", "outer kp", "outer kd", "outer tf", "inner kp", "inner ki", "inner kd", "inner tf",
-                 "h_lim", "MC unstable", "MC rise 5/50/95 % [s]"],
+                 "h_lim", "peak of W V [rad/s]", "h_lim in flight"],
                 [[name, *[_f(g["pitch"]["outer"][k], "{:.4g}") for k in ("kp", "kd", "tf")],
                   *[_f(g["pitch"]["inner"][k], "{:.4g}") for k in ("kp", "ki", "kd", "tf")],
                   _f(s["h_lim"].get(name), "{:.3f}"),
-                  _f(s["montecarlo"].get(name, {}).get("fraction_unstable"), "{:.1%}"),
-                  " / ".join(_f(x, "{:.3f}") for x in s["montecarlo"].get(name, {}).get("rise_s", []))]
+                  "DC (controller-independent)" if s.get("h_lim_low_frequency_bound", {}).get(name)
+                  else _f(s.get("h_lim_peak_rad_s", {}).get(name), "{:.3g}"),
+                  _f(s.get("h_lim_flight", {}).get(name), "{:.3f}")]
                  for name, g in s["gains"].items()])
+    if any(s.get("h_lim_low_frequency_bound", {}).values()):
+        L += ["", "Where ||W_delta V|| peaks at DC, V = -1/G for every controller with integral action, so h_lim = "
+                  "|G(0)|/|W_delta(0)| is a bound on the model's DC uncertainty, the same for every such gain set."]
+    levels = _mc_levels(s)
+    L += ["", "Monte Carlo: random stable Delta of peak gain scale x h_lim (the small-gain theorem guarantees "
+              "stability up to 1 x); draws with a closed-loop pole within 1e-6 of the unit circle are marginal, "
+              "counted apart. The worst-case Delta is the phase-matched all-pass just above h_lim.", ""]
+    L += _table(["gain set"] + [f"unstable / marginal at {lv} x" for lv in levels] +
+                ["worst case", "rise 5/50/95 % at 1 x [s]"],
+                [[name] + [f"{_f(_mc_level(s, name, lv).get('fraction_unstable'), '{:.1%}')} / "
+                           f"{_f(_mc_level(s, name, lv).get('fraction_marginal'), '{:.1%}')}" for lv in levels] +
+                 [{True: "unstable", False: "**stable**", None: "-"}[m.get("worst_case", {}).get("unstable")],
+                  " / ".join(_f(x, "{:.3f}") for x in _mc_level(s, name, levels[0] if levels else "1").get("rise_s", []))]
+                 for name, m in s["montecarlo"].items()])
     if pub.get("h_lim"):
         L += ["", "Published h_lim (their W_delta is not published, so only the ordering is comparable): " +
               "; ".join(f"{k}: " + ", ".join(f"{w} {v}" for w, v in d.items()) for k, d in pub["h_lim"].items()) + "."]
