@@ -292,3 +292,19 @@ def test_foreign_folder_and_unknown_vehicle(tmp_path, capsys):
     assert main(["pipeline", "--vehicle", "nope", "--tiny", "--out", str(tmp_path / "c")]) == 2
     assert "unknown vehicle 'nope'" in capsys.readouterr().err
     assert not (tmp_path / "n").exists()
+
+
+def test_in_flight_h_lim_uses_the_flight_models_own_w_delta(run):
+    """Issue 12: the in-flight h_lim divides by the flight model's own bootstrap W_delta (not the test-bed's) and,
+    as published (0.114 / 0.189 / 0.173), it tells the gain sets apart."""
+    from rotorlab.tune.robust import h_lim
+
+    out = run[0]
+    s, rf = _summary(out), RunFolder(out)
+    Wf, flight = rf.w_delta("flight"), rf.plant("pbsid-flight", "flight")
+    vals = []
+    for name, gs in rf.gain_sets().items():
+        assert s["h_lim_flight"][name] == pytest.approx(h_lim(Wf, control_sensitivity_cascade(flight, gs["pitch"])),
+                                                        rel=1e-6)
+        vals.append(s["h_lim_flight"][name])
+    assert max(vals) >= 1.05 * min(vals)
