@@ -163,7 +163,10 @@ def run(ctx: StageContext) -> dict:
                          "truth_flight": _tf_text(truth_flight),
                          "supervisor_active_pct": float(100.0 * np.mean(fl["sup_lon"] != 0.0))
                          if "sup_lon" in fl else None,
-                         "published_nugap": PUBLISHED_NUGAP_TESTBED_FLIGHT}
+                         # only the P2-A2 was identified in flight (ref. 000: "none in flight identification
+                         # campaign was conducted" for the A2-MINI/B)
+                         "published_nugap": PUBLISHED_NUGAP_TESTBED_FLIGHT
+                         if "flight" in load_vehicle(ctx.vehicle).published else None}
     res["nominal"] = "oe-closed-loop" if closed else "pbsid"
     res["truth_order"] = int(truth.nstates)
     return res

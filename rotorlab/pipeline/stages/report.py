@@ -482,7 +482,9 @@ def _markdown(s: dict) -> str:
                   + (f" (supervisor active {f['supervisor_active_pct']:.1f} % of the time)"
                      if f.get("supervisor_active_pct") is not None else "") + ".",
               f"Test-bed (PBSID n = 2, p = 35, f = 6, as published) vs in-flight PBSID model: nu-gap "
-              f"**{f['nugap_testbed_flight']:.4f}** (published {f['published_nugap']}), chordal distance over "
+              f"**{f['nugap_testbed_flight']:.4f}** ("
+              + (f"published {f['published_nugap']}" if f.get("published_nugap") is not None
+                 else "no published flight model") + "), chordal distance over "
               f"{band[0]:g}-{band[1]:g} rad/s at most {f.get('chordal_testbed_flight_max', float('nan')):.4f}; "
               f"nominal test-bed model vs flight {f.get('nugap_nominal_flight', float('nan')):.4f}; "
               f"flight model to the twin's true flight "
