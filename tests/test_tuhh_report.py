@@ -10,8 +10,9 @@ def _entry(peak, rec, stopped=None):
 
 
 def test_summary_keys_and_claims():
-    raw = {"design-step": {d: {ax: {"rise_time_s": r, "overshoot_pct": 3.0} for ax in ("roll", "pitch")} | {"stopped": None}
-                           for d, r in (("modified-pid", 0.17), ("hinf-loopshaping", 0.22), ("hinf-loopshaping-aw", 0.22))},
+    rises = (("modified-pid", 0.17), ("hinf-loopshaping", 0.22), ("hinf-loopshaping-aw", 0.22))
+    raw = {"design-step": {d: {ax: {"rise_time_s": r, "overshoot_pct": 3.0} for ax in ("roll", "pitch")}
+                           | {"stopped": None} for d, r in rises},
            "input-disturbance": {"modified-pid": _entry(15.5, 4.7), "hinf-loopshaping": _entry(2.1, 0.2),
                                  "hinf-loopshaping-aw": _entry(2.1, 0.2)},
            "saturating-disturbance": {"modified-pid": _entry(44.0, None, "pitch-rig: rig stop"),

@@ -130,7 +130,8 @@ def _check(spec: ControllerSpec, src) -> None:
         na = aw.A.shape[0]
         bad = [x for x in aw.measurements if x not in spec.inputs]
         if bad:
-            raise ConfigError(file=src, field="antiwindup.measurements", expected=f"names among inputs {list(spec.inputs)}",
+            raise ConfigError(file=src, field="antiwindup.measurements",
+                              expected=f"names among inputs {list(spec.inputs)}",
                               got=bad)
         for k, shape in (("A", (na, na)), ("B", (na, m)), ("C", (m + len(aw.measurements), na))):
             if getattr(aw, k).shape != shape:
@@ -160,8 +161,9 @@ def parse_controller(data: dict, src="<controller>") -> ControllerSpec:
     p, m = len(data["inputs"]), len(data["outputs"])
     A = _mat(data["A"], src, "A")
     n = A.shape[0]
-    B, C, D = _mat(data["B"], src, "B", (n, p) if n == 0 else None), _mat(data["C"], src, "C", (m, n) if n == 0 else None), \
-        _mat(data["D"], src, "D")
+    B = _mat(data["B"], src, "B", (n, p) if n == 0 else None)
+    C = _mat(data["C"], src, "C", (m, n) if n == 0 else None)
+    D = _mat(data["D"], src, "D")
     lim = data.get("u_limit_pct")
     if lim is not None:
         if not isinstance(lim, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in lim):
