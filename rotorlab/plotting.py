@@ -145,14 +145,17 @@ def plot_runs(runs, path, signals=None, title: str | None = None) -> Path:
                 if c not in cols:
                     continue
                 is_ref = c.endswith("_ref")
-                shared = is_ref and all(np.array_equal(cols[c], r["columns"].get(c)) for r in runs)
+                # a signal every run shares (a set-point, the common-random-number wind) is drawn once
+                shared = len(runs) > 1 and all(np.array_equal(cols[c], r["columns"].get(c)) for r in runs)
                 if shared and i > 0:
-                    continue  # the same set-point in every run: drawn once, in black
+                    continue
                 if is_ref:
-                    style = dict(color="k" if shared else f"C{i % 10}", ls="--", lw=1.0)
+                    style = dict(color="k" if shared or len(runs) == 1 else f"C{i % 10}", ls="--", lw=1.0)
+                elif shared:
+                    style = dict(color="0.35", lw=1.1)
                 else:
                     style = dict(color=f"C{(i + j) % 10}", lw=1.1)
-                name = c if len(runs) == 1 or shared else f"{c}: {lab}"
+                name = c + (" (all runs)" if shared else "") if len(runs) == 1 or shared else f"{c}: {lab}"
                 ax.plot(t, cols[c], label=name, **style)
         notes = run["info"].get("notes") or {}
         sw = notes.get("switch_s")

@@ -308,3 +308,113 @@ def test_in_flight_h_lim_uses_the_flight_models_own_w_delta(run):
                                                         rel=1e-6)
         vals.append(s["h_lim_flight"][name])
     assert max(vals) >= 1.05 * min(vals)
+
+
+def _figure_facts(fig):
+    """What a reader sees of a figure: size, and per axes its labels, grid, legend, limits and marker data."""
+    from rotorlab.plotting import DPI
+
+    axes = []
+    for ax in fig.axes:
+        leg = ax.get_legend()
+        handles = leg.legend_handles if leg else []
+        axes.append({
+            "x": ax.get_xlabel(), "y": ax.get_ylabel(), "title": ax.get_title(),
+            "grid": any(g.get_visible() for g in ax.get_xgridlines()),
+            "legend": [t.get_text() for t in leg.get_texts()] if leg else [],
+            "legend_alpha": [h.get_alpha() for h in handles],
+            "xlim": ax.get_xlim(), "ylim": ax.get_ylim(),
+            "markers": [(ln.get_label(), np.asarray(ln.get_xdata(), float), np.asarray(ln.get_ydata(), float))
+                        for ln in ax.get_lines() if ln.get_linestyle() in ("None", "", " ")],
+            "vlines": [ln.get_label() for ln in ax.get_lines() if ln.get_linestyle() == ":"],
+        })
+    return {"width_px": fig.get_size_inches()[0] * DPI, "axes": axes}
+
+
+def test_every_report_figure_is_labelled_with_units(run, monkeypatch, tmp_path):
+    """Every figure of the report drawn again from the run folder: legible width, a grid and a quantity with its
+    unit on every axis, one unit per PSD axis, every replica pole inside the pole plot, the in-flight gain
+    switch marked, no legend entry for something invisible."""
+    import re
+    import types
+
+    import rotorlab.plotting as plotting
+    from rotorlab.pipeline.stages import report
+
+    out = run[0]
+    s = _summary(out)
+    facts = {}
+    real_save = plotting.save
+
+    def save(fig, path):
+        facts[path.name] = _figure_facts(fig)
+        return real_save(fig, path)
+
+    monkeypatch.setattr(plotting, "save", save)
+    folder = RunFolder(out)
+    paths, skipped = report.render_figures(types.SimpleNamespace(run=folder), tmp_path, folder.result("identify"),
+                                           list(s["gains"]), s["compared_set"])
+    assert skipped == {} and paths == s["figures"]
+    assert sorted(facts) == sorted(p.split("/")[-1] for p in s["figures"].values())
+    unit = re.compile(r"\S \[[^\]]+\]$")
+    for name, f in facts.items():
+        assert f["width_px"] >= 1000, name
+        for ax in f["axes"]:
+            assert unit.search(ax["y"]), f"{name}: y label {ax['y']!r} has no unit"
+            assert ax["grid"], f"{name}: no grid"
+            assert all(a is None or a >= 0.15 for a in ax["legend_alpha"]), f"{name}: a legend entry too faint to see"
+        assert any(unit.search(ax["x"]) for ax in f["axes"]), f"{name}: no labelled x axis"
+    # the PSD: one quantity and one unit per axes, never % and deg/s together
+    spec = facts["prbs_spectrum.png"]["axes"]
+    assert [ax["y"] for ax in spec] == ["PSD of u_lon [%^2/(rad/s)]", "PSD of q [(deg/s)^2/(rad/s)]"]
+    assert spec[-1]["x"] == "frequency [rad/s]"
+    # the pole cloud: every replica pole of the bootstrap inside the full view
+    z = np.load(folder.replicas_path())
+    full = facts["poles.png"]["axes"][0]
+    _, px, py = next(m for m in full["markers"] if m[0].startswith("bootstrap poles"))
+    assert px.size == np.isfinite(z["poles_c"]).sum()
+    assert full["xlim"][0] <= px.min() and px.max() <= full["xlim"][1]
+    assert full["ylim"][0] <= py.min() and py.max() <= full["ylim"][1]
+    # the hover comparison: the tuned trace runs the standard gains until the switch, which every panel marks
+    hover = facts["standard_vs_tuned_hover.png"]["axes"]
+    assert any(lab.startswith("gain switch to tuned at") for lab in hover[0]["legend"])
+    assert all(ax["vlines"] for ax in hover)
+
+
+def test_report_tables_are_well_formed_and_lead_with_the_key_metrics(run):
+    """Every Markdown table row has its header's column count (pipes inside cells escaped), and each validation
+    table starts with the metrics a control engineer reads first, with units, equal to summary.json."""
+    import re
+
+    from rotorlab.keymetrics import fmt, lookup
+
+    rep = stage_dir(run[0], "report")
+    md = (rep / "report.md").read_text()
+    s = _summary(run[0])
+    lines = md.splitlines()
+    cells = lambda ln: re.split(r"(?<!\\)\|", ln.strip()[1:-1])  # noqa: E731
+    i = 0
+    while i < len(lines):
+        if lines[i].startswith("|"):
+            n = len(cells(lines[i]))
+            assert set(lines[i + 1]) <= set("|-") and lines[i + 1].count("|") == n + 1, lines[i:i + 2]
+            i += 2
+            while i < len(lines) and lines[i].startswith("|"):
+                assert len(cells(lines[i])) == n, lines[i]
+                i += 1
+        i += 1
+    assert "max \\|theta\\| [deg]" in md
+    first = {"setpoint": ["rise time", "overshoot", "settling time", "steady-state error"],
+             "gust": ["pitch peak deviation", "pitch IAE", "pitch recovery time"],
+             "rope-pull": ["overshoot after release", "peak deviation after release", "IAE after release",
+                           "recovery time after release"],
+             "hover": ["pitch RMS error", "roll RMS error", "horizontal position RMS error", "altitude RMS error"]}
+    keys = {"setpoint": "steps.mean.rise_time_s", "gust": "pitch.disturbance.peak_deviation",
+            "rope-pull": "release_overshoot_deg", "hover": "pitch.rms_error_deg"}
+    for sc, labels in first.items():
+        sec = md.split(f"### {sc}\n", 1)[1]
+        rows = [ln for ln in sec.splitlines() if ln.startswith("| ")][1:len(labels) + 1]
+        assert all(r[2:].startswith(lab) for r, lab in zip(rows, labels)), rows
+        assert all(re.search(r"\[[^\]]+\] \|", r) for r in rows), rows  # a unit on every key metric
+        sets = list(s["validation"][sc])
+        assert cells(rows[0])[1:] == [f" {fmt(lookup(s['validation'][sc][n], keys[sc]))} " for n in sets]

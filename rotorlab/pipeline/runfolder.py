@@ -25,6 +25,7 @@ import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from rotorlab import atomic
+from rotorlab.logformat import encode_metadata
 from rotorlab.gains import GainSet, load_gains
 from rotorlab.ident.model import IdentifiedModel
 from rotorlab.ident.modelio import load_model
@@ -68,8 +69,7 @@ def read_manifest(out) -> dict | None:
 def write_log(path: Path, columns: dict, units: dict, meta: dict) -> None:
     """One run's columns as a Parquet log (atomic)."""
     tbl = pa.table({k: np.asarray(v, float) for k, v in columns.items()})
-    tbl = tbl.replace_schema_metadata({b"rotorlab.units": json.dumps(units).encode(),
-                                       b"rotorlab": json.dumps(meta, default=str).encode()})
+    tbl = tbl.replace_schema_metadata(encode_metadata(units, meta))  # the one log format (rotorlab.logformat)
     with atomic.atomic_path(path) as tmp:
         pq.write_table(tbl, tmp)
 

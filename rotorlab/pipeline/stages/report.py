@@ -22,13 +22,16 @@ from scipy.signal import welch
 
 from rotorlab import __version__, atomic
 from rotorlab.gains import save_gains
+from rotorlab.keymetrics import flatten_metrics, fmt, key_rows
+from rotorlab.logformat import decode_metadata
 from rotorlab.lti import d2c_zoh, freqresp
 from rotorlab.pipeline import tuhh_report
 from rotorlab.pipeline.runfolder import Stage, StageContext, read_log
 from rotorlab.pipeline.settings import DT_S
 from rotorlab.sim.log import RunLog
 
-__all__ = ["STAGE", "write_report", "flatten_metrics", "compare_sets", "claims", "headline_rows", "HEADLINE"]
+__all__ = ["STAGE", "write_report", "render_figures", "flatten_metrics", "compare_sets", "claims", "headline_rows",
+           "HEADLINE"]
 
 PUBLISHED = {
     "anteos-p2a2": {"moesp_best": "n=4, p=40", "pbsid_best": "n=5, p/f=11/7", "nugap_testbed_flight": 0.0741,
@@ -37,26 +40,6 @@ PUBLISHED = {
                               "optimal-flight": {"flight": 0.173}}},
     "anteos-a2minib": {"moesp_best": "n=2, p=39", "vaf_cv": 83.13, "vaf_val": 61.22},
 }
-
-
-def flatten_metrics(m, prefix: str = "") -> dict:
-    """Scenario metrics as one flat ``{"a.b": number}`` dict; a list of dicts (e.g. one per step) becomes the
-    mean of each numeric key under ``"<key>.mean.<name>"``."""
-    out = {}
-    if isinstance(m, dict):
-        for k, v in m.items():
-            out.update(flatten_metrics(v, f"{prefix}{k}."))
-    elif isinstance(m, (list, tuple)) and m and all(isinstance(x, dict) for x in m):
-        rows = [flatten_metrics(x) for x in m]
-        for k in sorted(set().union(*rows)):
-            vals = [r[k] for r in rows if k in r and r[k] is not None]
-            if vals:
-                out[f"{prefix}mean.{k}"] = float(np.mean(vals))
-    elif isinstance(m, bool) or m is None:
-        pass
-    elif isinstance(m, (int, float)) and math.isfinite(m):
-        out[prefix[:-1]] = float(m)
-    return out
 
 
 # metric-name fragments that mean "lower is better", per claim; the first match present in the data is used
@@ -126,120 +109,160 @@ def claims(summary: dict, tuned: str) -> list[dict]:
 # figures
 
 
-def _plt():
-    # imported on first figure: matplotlib is slow to import and must be switched to Agg before pyplot
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def _save(fig, path: Path) -> str:
-    with atomic.atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=90, format="png", metadata={"Software": None})
-    _plt().close(fig)
+    # imported on first figure: matplotlib is slow to import
+    from rotorlab.plotting import save
+
+    save(fig, path)
     return f"figures/{path.name}"
 
 
 def _fig_spectrum(ctx: StageContext, figs: Path):
-    log = ctx.run.experiment_log("id")
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 3.5))
-    for col, lab in (("u_lon", "input u_lon [%]"), ("q", "output q [deg/s]")):
-        f, p = welch(log[col], fs=1 / DT_S, nperseg=512)
-        ax.loglog(2 * np.pi * f[1:], p[1:], label=lab)
+    """Input and output spectra of the identification campaign, each on its own axes and in its own units
+    (one-sided Welch PSD per rad/s), with the band the campaign was designed to excite."""
+    from rotorlab.plotting import figure, label
+
+    log, units = ctx.run.experiment_log("id"), {"u_lon": "%", "q": "deg/s"}
     exc = ctx.run.result("experiments").get("excitation", {})
     lo, hi = exc.get("band_rad_s", (4.0, 8.0))
     frac = exc.get("band_fraction")
-    ax.axvspan(lo, hi, color="0.85", label=f"campaign band {lo:g}-{hi:g} rad/s" +
-               (f" ({frac:.0%} of the input power)" if frac is not None else ""))
-    ax.set_xlabel("frequency [rad/s]"), ax.set_ylabel("PSD"), ax.legend(), ax.set_title("PRBS campaign spectrum")
+    fig, axs = figure(2, 1, height_in=6.0, sharex=True)
+    for ax, (col, name) in zip(axs[:, 0], (("u_lon", "input u_lon"), ("q", "output q"))):
+        f_hz, p_hz = welch(log[col], fs=1 / DT_S, nperseg=512)
+        # a PSD per Hz over 2 pi is the PSD per rad/s: the same power, on the frequency axis drawn
+        ax.loglog(2 * np.pi * f_hz[1:], p_hz[1:] / (2 * np.pi), color="C0" if col == "u_lon" else "C1", label=name)
+        ax.axvspan(lo, hi, color="C2", alpha=0.15, label=f"campaign band {lo:g}-{hi:g} rad/s" +
+                   (f" ({frac:.0%} of the input power)" if frac is not None and col == "u_lon" else ""))
+        u = units[col] if "/" not in units[col] else f"({units[col]})"
+        ax.set_ylabel(label(f"PSD of {col}", f"{u}^2/(rad/s)"))
+        ax.legend(fontsize=8, loc="lower left")
+    axs[-1, 0].set_xlabel(label("frequency", "rad/s"))
+    axs[0, 0].set_title("PRBS identification campaign: input and output spectra (Welch)")
     return _save(fig, figs / "prbs_spectrum.png")
 
 
 def _fig_bode(ctx: StageContext, figs: Path, ident: dict):
-    plt = _plt()
-    fig, (am, ap) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    from rotorlab.plotting import figure, label
+
+    fig, axs = figure(2, 1, height_in=7.5, sharex=True)
+    am, ap = axs[:, 0]
     rep = ctx.run.replicas_path()
     if rep.exists():
         z = np.load(rep)
         w = z["w_rad_s"]
-        am.fill_between(w, z["mag_lo"], z["mag_hi"], color="0.8", label="bootstrap 95 % band")
-        ap.fill_between(w, np.degrees(z["phase_lo"]), np.degrees(z["phase_hi"]), color="0.8")
+        width_db = float(np.max(20 * np.log10(np.maximum(z["mag_hi"], 1e-300) / np.maximum(z["mag_lo"], 1e-300))))
+        # edges drawn as lines as well: a band a fraction of a dB wide stays visible and its legend entry true
+        am.fill_between(w, 20 * np.log10(z["mag_lo"]), 20 * np.log10(z["mag_hi"]), color="C7", alpha=0.35, lw=0.8,
+                        edgecolor="C7", label=f"PBSID bootstrap 95 % band (up to {width_db:.2g} dB wide)")
+        ap.fill_between(w, np.degrees(z["phase_lo"]), np.degrees(z["phase_hi"]), color="C7", alpha=0.35, lw=0.8,
+                        edgecolor="C7")
     else:
-        w = np.logspace(-1, np.log10(140), 200)
+        w = np.logspace(-1, np.log10(0.999 * np.pi / DT_S), 200)
     truth = ctx.run.truth()
     for name in list(ident["models"]) + ["pbsid-flight", "truth"]:
         if not ctx.run.model_path(name).exists():
             continue
         sys = truth if name == "truth" else ctx.run.identified(name).sys
         G = freqresp(sys, w)[:, 0, 0]
-        style = dict(color="k", lw=2.2, ls="--") if name == "truth" else {}
-        am.loglog(w, np.abs(G), label=name, **style)
+        style = dict(color="k", lw=2.2, ls="--") if name == "truth" else dict(lw=1.2)
+        am.semilogx(w, 20 * np.log10(np.abs(G)), label="twin's true model" if name == "truth" else name, **style)
         ap.semilogx(w, np.degrees(np.unwrap(np.angle(G))), **style)
-    am.set_ylabel("|q/u| [(deg/s)/%]"), ap.set_ylabel("phase [deg]"), ap.set_xlabel("frequency [rad/s]")
-    am.legend(fontsize=7), am.set_title("identified models (delay removed) vs the twin's true model")
+    am.set_ylabel("|q/u_lon| [dB re 1 (deg/s)/%]")
+    ap.set_ylabel(label("phase", "deg"))
+    ap.set_xlabel(label("frequency", "rad/s"))
+    am.legend(fontsize=8, ncol=2)
+    am.set_title("identified models (input delay removed) vs the twin's true model (50 Hz: Nyquist 157 rad/s)")
     return _save(fig, figs / "bode.png")
 
 
 def _fig_poles(ctx: StageContext, figs: Path):
+    """Bootstrap pole clouds in the s-plane: every replica pole in view on the left, a zoom on the
+    low-frequency region of the truth's dominant poles on the right."""
+    from rotorlab.plotting import figure, label
+
     rep = ctx.run.replicas_path()
     if not rep.exists():
         return None
     z = np.load(rep)
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 4.5))
     pc = z["poles_c"].ravel()
-    ax.plot(pc.real, pc.imag, ".", ms=3, alpha=0.4, label="bootstrap poles")
+    pc = pc[np.isfinite(pc)]
     tp = np.linalg.eigvals(np.asarray(d2c_zoh(ctx.run.truth()).A, float))
-    tp = tp[np.abs(tp) < 200]
-    ax.plot(tp.real, tp.imag, "kx", ms=9, mew=2, label="twin truth (|s| < 200)")
-    ax.axvline(0, color="0.5", lw=0.8)
-    ax.set_xlabel("Re s [1/s]"), ax.set_ylabel("Im s [rad/s]"), ax.legend(), ax.set_title("pole clouds")
-    ax.set_xlim(max(-80, ax.get_xlim()[0]), 5), ax.set_ylim(-60, 60)
+    fig, axs = figure(1, 2, height_in=5.0)
+    n_rep = z["poles_c"].shape[0]
+    for ax, zoom in zip(axs[0], (False, True)):
+        ax.plot(pc.real, pc.imag, ".", ms=3, alpha=0.35, color="C0",
+                label=f"bootstrap poles ({pc.size} poles of {n_rep} replicas)")
+        ax.plot(tp.real, tp.imag, "x", color="k", ms=9, mew=2, label="twin's true model")
+        ax.axvline(0, color="0.3", lw=0.9)
+        ax.set_xlabel(label("Re s", "1/s"))
+        ax.set_ylabel(label("Im s", "rad/s"))
+        pts = np.concatenate([pc, tp])
+        if zoom:
+            r = 1.6 * float(np.max(np.abs(tp[np.argsort(np.abs(tp))[:2]])))  # the two slowest truth poles
+            ax.set_xlim(-r, 0.15 * r), ax.set_ylim(-r, r)
+            inside = int(np.sum((np.abs(pc.real) <= r) & (np.abs(pc.imag) <= r)))
+            ax.set_title(f"zoom on |s| < {r:.3g} rad/s ({inside} of {pc.size} poles)")
+        else:
+            xr = (float(pts.real.min()), float(max(pts.real.max(), 0.0)))
+            yr = float(np.abs(pts.imag).max()) or 1.0
+            pad = 0.05 * max(xr[1] - xr[0], 2 * yr)
+            ax.set_xlim(xr[0] - pad, xr[1] + pad), ax.set_ylim(-yr - pad, yr + pad)
+            ax.set_title(f"all {pc.size} bootstrap poles")
+            ax.legend(fontsize=8, loc="upper left")
     return _save(fig, figs / "poles.png")
 
 
 def _fig_montecarlo(ctx: StageContext, figs: Path, sets):
+    from rotorlab.plotting import figure, label
+
     p = ctx.run.montecarlo_path()
     if not p.exists():
         return None
     z = np.load(p)
     if "t" not in z:
         return None
-    plt = _plt()
-    fig, axs = plt.subplots(1, 2, figsize=(9, 3.5))
+    fig, axs = figure(1, 2, height_in=4.5)
+    axs = axs[0]
     for i, name in enumerate(sets):
         for ax, kind in zip(axs, ("setpoint", "load")):
             key = f"{name}__{kind}"
             if key in z:
                 b = z[key]
-                ax.fill_between(z["t"], b[1], b[3], alpha=0.25, color=f"C{i}")
-                ax.plot(z["t"], b[2], color=f"C{i}", label=name)
-    axs[0].set_title("set-point step (5-95 % band, median)"), axs[1].set_title("load (gust) step at the plant input")
+                ax.fill_between(z["t"], b[1], b[3], alpha=0.2, color=f"C{i}")
+                ax.plot(z["t"], b[2], color=f"C{i}", label=f"{name}: median, 5-95 % band")
+    axs[0].set_title("unit set-point step, random Delta at h_lim")
+    axs[1].set_title("unit load step at the plant input, random Delta at h_lim")
     for ax in axs:
-        ax.set_xlabel("t [s]")
-    axs[0].set_ylabel("theta [deg per deg]"), axs[0].legend(fontsize=7)
+        ax.set_xlabel(label("time t", "s"))
+    axs[0].set_ylabel(label("theta / theta_ref", "deg/deg"))
+    axs[1].set_ylabel(label("theta per load step", "deg/%"))
+    axs[0].legend(fontsize=8)
     return _save(fig, figs / "montecarlo.png")
 
 
-def _fig_scenario(ctx: StageContext, figs: Path, scenario: str, sets, col="theta", ref="theta_ref", fname=None):
-    logs = {s: ctx.run.validation_log(scenario, s) for s in sets if ctx.run.validation_log_path(scenario, s).exists()}
-    if not logs:
+def _fig_scenario(ctx: StageContext, figs: Path, scenario: str, sets, fname=None):
+    """The validation runs of ``scenario``, one colour per gain set, with set-points and the in-flight gain
+    switch marked (:func:`rotorlab.plotting.plot_runs`)."""
+    from rotorlab.plotting import plot_runs, read_run
+
+    runs = []
+    for s in sets:
+        path = ctx.run.validation_log_path(scenario, s)
+        if path.exists():
+            r = read_run(path)
+            r["label"] = s
+            runs.append(r)
+    if not runs:
         return None
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    for i, (s, lg) in enumerate(logs.items()):
-        a1.plot(lg["t"], lg[col], color=f"C{i}", lw=1, label=s)
-        a2.plot(lg["t"], lg["u_lon"], color=f"C{i}", lw=0.8)
-    first = next(iter(logs.values()))
-    if ref in first and np.any(np.isfinite(first[ref])):
-        a1.plot(first["t"], first[ref], "k--", lw=0.8, label="set-point")
-    a1.set_ylabel(f"{col} [deg]"), a2.set_ylabel("u_lon [%]"), a2.set_xlabel("t [s]"), a1.legend(fontsize=7)
-    a1.set_title(f"validation on the twin: {scenario}")
-    return _save(fig, figs / (fname or f"{scenario}.png"))
+    signals = ["theta+theta_ref", "u_lon"] + (["x+x_ref", "wind_u"] if scenario == "hover" else [])
+    if scenario == "gust":
+        signals.append("wind_u")
+    elif scenario == "rope-pull":
+        signals.append("rope_tension")
+    signals = [sig for sig in signals if all(c in runs[0]["columns"] for c in sig.split("+"))]
+    plot_runs(runs, figs / (fname or f"{scenario}.png"), signals,
+              title=f"validation on the twin: {scenario} ({', '.join(r['label'] for r in runs)})")
+    return f"figures/{fname or f'{scenario}.png'}"
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -252,9 +275,14 @@ def _f(x, fmt="{:.3g}"):
     return fmt.format(x) if isinstance(x, (int, float)) else str(x)
 
 
+def _cell(c) -> str:
+    # a pipe inside a cell (|theta|) would end the cell: Markdown's escape keeps it text
+    return str(c).replace("|", "\\|").replace("\n", " ")
+
+
 def _table(header, rows) -> list[str]:
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    out = ["| " + " | ".join(map(_cell, header)) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(map(_cell, r)) + " |" for r in rows]
     return out
 
 
@@ -294,21 +322,8 @@ def write_report(ctx: StageContext) -> dict:
         summary["skipped"]["greybox"] = gb["skipped"]
     summary["design_claims"] = tuhh_report.design_claims(validation)
     summary["claims"] = claims(summary, tuned) if tuned else []
-    fig_paths = {}
-    for key, fn in (("spectrum", lambda: _fig_spectrum(ctx, figs)), ("bode", lambda: _fig_bode(ctx, figs, ident)),
-                    ("poles", lambda: _fig_poles(ctx, figs)), ("montecarlo", lambda: _fig_montecarlo(ctx, figs, sets)),
-                    ("setpoint", lambda: _fig_scenario(ctx, figs, "setpoint", sets)),
-                    ("gust", lambda: _fig_scenario(ctx, figs, "gust", sets)),
-                    ("rope-pull", lambda: _fig_scenario(ctx, figs, "rope-pull", sets)),
-                    ("hover", lambda: _fig_scenario(ctx, figs, "hover", ["standard", tuned] if tuned else sets,
-                                                    fname="standard_vs_tuned_hover.png"))):
-        try:
-            p = fn()
-        except Exception as exc:  # a figure must never sink the report; say which and why
-            summary["skipped"][f"figure.{key}"] = f"skipped: {type(exc).__name__}: {exc}"
-            p = None
-        if p:
-            fig_paths[key] = p
+    fig_paths, skipped = render_figures(ctx, figs, ident, sets, tuned)
+    summary["skipped"].update(skipped)
     summary["figures"] = fig_paths
     # artefacts next to the report
     shutil.copytree(ctx.run.models_dir(), ctx.work / "models")
@@ -321,6 +336,27 @@ def write_report(ctx: StageContext) -> dict:
     atomic.write_json(ctx.work / "summary.json", summary)
     return {"summary": "summary.json", "report": "report.md", "figures": fig_paths,
             "claims": [{k: c.get(k) for k in ("claim", "holds")} for c in summary["claims"]]}
+
+
+def render_figures(ctx, figs: Path, ident: dict, sets, tuned) -> tuple[dict, dict]:
+    """Every figure of the report into ``figs``: ``({key: "figures/NAME.png"}, {"figure.KEY": why skipped})``.
+    ``ctx`` needs only ``run`` (the run folder), so a finished run's figures can be drawn again."""
+    paths, skipped = {}, {}
+    for key, fn in (("spectrum", lambda: _fig_spectrum(ctx, figs)), ("bode", lambda: _fig_bode(ctx, figs, ident)),
+                    ("poles", lambda: _fig_poles(ctx, figs)), ("montecarlo", lambda: _fig_montecarlo(ctx, figs, sets)),
+                    ("setpoint", lambda: _fig_scenario(ctx, figs, "setpoint", sets)),
+                    ("gust", lambda: _fig_scenario(ctx, figs, "gust", sets)),
+                    ("rope-pull", lambda: _fig_scenario(ctx, figs, "rope-pull", sets)),
+                    ("hover", lambda: _fig_scenario(ctx, figs, "hover", ["standard", tuned] if tuned else sets,
+                                                    fname="standard_vs_tuned_hover.png"))):
+        try:
+            p = fn()
+        except Exception as exc:  # a figure must never sink the report; say which and why
+            skipped[f"figure.{key}"] = f"skipped: {type(exc).__name__}: {exc}"
+            p = None
+        if p:
+            paths[key] = p
+    return paths, skipped
 
 
 def _write_gains(ctx: StageContext, sets):
@@ -337,9 +373,14 @@ def _recordings(ctx: StageContext, sets, summary) -> dict:
     out = {}
     paths = ctx.run.validation_log_paths()
     limit = ctx.settings.get("record_runs")
-    for p in paths[:limit] if limit is not None else paths:
-        meta = json.loads(pq.read_schema(p).metadata[b"rotorlab"])
-        units = json.loads(pq.read_schema(p).metadata[b"rotorlab.units"])
+    if limit is not None:
+        # a limited level records the compared set of every scenario first, then the standard set, so each
+        # validation scenario gets a recording (file names are SCENARIO__SET.parquet)
+        order = list(dict.fromkeys(["tuned", "standard", *sets]))
+        rank = {s: i for i, s in enumerate(order)}
+        paths = sorted(paths, key=lambda q: (rank.get(q.stem.split("__")[-1], len(rank)), q.stem))[:limit]
+    for p in paths:
+        units, meta = decode_metadata(pq.read_schema(p).metadata)
         cols = read_log(p)
         log = RunLog({k: u for k, u in units.items() if k != "t"}, len(cols["t"]))
         for i in range(len(cols["t"])):
@@ -350,7 +391,7 @@ def _recordings(ctx: StageContext, sets, summary) -> dict:
             out[p.stem] = f"recordings/{Path(path).name}"
         except Exception as exc:
             summary["skipped"][f"recording.{p.stem}"] = f"skipped: {type(exc).__name__}: {exc}"
-    return out
+    return dict(sorted(out.items()))
 
 
 # (scenario, metric, label, lower_is_better); hover: the standard run has no switch, so its whole run
@@ -563,11 +604,22 @@ def _markdown(s: dict) -> str:
     if "montecarlo" in s["figures"]:
         L += ["", f"![Monte Carlo]({s['figures']['montecarlo']})"]
     L += ["", "## 5. Validation on the twin", ""]
+    L += ["Each scenario's table leads with the metrics a control engineer reads first (set-point: rise, overshoot, "
+          "settling, steady-state error; disturbances: peak, IAE, recovery; hover: RMS errors), with units; every "
+          "metric is in `summary.json` under `validation`.", ""]
     for sc, sets in s["validation"].items():
-        keys = sorted(set().union(*[set(m) for m in sets.values()]))
-        keys = [k for k in keys if not k.startswith("band")][:14]
+        names = list(sets)
+        rows = key_rows(sc, [sets[n] for n in names], rest=False)
+        n_all = len(key_rows(sc, [sets[n] for n in names], rest=True))
         L += [f"### {sc}", ""]
-        L += _table(["metric"] + list(sets), [[k] + [_f(sets[n].get(k), "{:.4g}") for n in sets] for k in keys])
+        if sc == "hover":
+            L += ["The published flight test: every run starts on the standard gains and switches in flight to the "
+                  "set of its column (the dotted line in the figure); its metrics are taken after the switch (the "
+                  "first 3 s after it left out), the standard run's over the whole run after the first 3 s.", ""]
+        L += _table(["metric"] + names, [[f"{lab} [{unit}]" if unit else lab] + [fmt(v) for v in vals]
+                                        for _, lab, unit, vals in rows])
+        if n_all > len(rows):
+            L += ["", f"{n_all - len(rows)} more metrics of this scenario in `summary.json` (`validation.{sc}`)."]
         key = {"hover": "hover"}.get(sc, sc)
         if key in s["figures"]:
             L += ["", f"![{sc}]({s['figures'][key]})"]
@@ -576,7 +628,8 @@ def _markdown(s: dict) -> str:
     if s["skipped"]:
         L += ["", "## Skipped", ""] + [f"- `{k}`: {v}" for k, v in s["skipped"].items()]
     if s.get("recordings"):
-        L += ["", "## Recordings", "", "Open with `rerun FILE.rrd`: " +
+        L += ["", "## Recordings", "", "Open them all with `rotorlab view RUN_FOLDER` (`--web` without a display), "
+                                       "or one with `rerun FILE.rrd`: " +
               ", ".join(f"[{k}]({v})" for k, v in s["recordings"].items())]
     return "\n".join(L) + "\n"
 
@@ -603,7 +656,8 @@ def _html(md: str, title: str) -> str:
             while i < len(lines) and lines[i].startswith("|"):
                 rows.append(lines[i])
                 i += 1
-            cells = [[c.strip() for c in r.strip("|").split("|")] for r in rows if not set(r) <= set("|-")]
+            cells = [[c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", r.strip()[1:-1])]
+                     for r in rows if not set(r) <= set("|-")]
             out.append("<table>")
             for j, r in enumerate(cells):
                 tag = "th" if j == 0 else "td"

@@ -42,6 +42,7 @@ def run_validation(task: dict) -> dict:
     except Exception as exc:  # a scenario refusing this vehicle is reported, not fatal
         return {"skipped": f"skipped: {type(exc).__name__}: {exc}"}
     return {"metrics": jsonable(r.metrics), "stopped": r.stopped, "scene": r.info.get("scene"),
+            "notes": jsonable(r.info.get("notes") or {}),
             "columns": {k: r.log[k].copy() for k in r.log.columns}, "units": r.log.units}
 
 
@@ -91,7 +92,8 @@ def run(ctx: StageContext) -> dict:
             continue
         res["validation"].setdefault(t["scenario"], {})[t["set"]] = {**r["metrics"], "stopped": r["stopped"]}
         write_log(ctx.work / "logs" / f"{t['scenario']}__{t['set']}.parquet", r["columns"], r["units"],
-                  {"scenario": t["scenario"], "gains": t["set"], "seed": t["seed"], "scene": r["scene"]})
+                  {"scenario": t["scenario"], "gains": t["set"], "seed": t["seed"], "scene": r["scene"],
+                   "vehicle": ctx.vehicle, "notes": r["notes"]})
     dtasks = _design_tasks(ctx)
     if dtasks:
         (ctx.work / "design_logs").mkdir()
