@@ -172,7 +172,7 @@ def plot_runs(runs, path, signals=None, title: str | None = None) -> Path:
         # several signals in a panel (wind_u, wind_v, wind_w): their common stem names the axis, the legend the rest
         stem = os.path.commonprefix(names).rstrip("_") if len(names) > 1 else names[0]
         ax.set_ylabel(label(stem or names[0], unit))
-        ax.legend(fontsize=8, loc="upper right", ncol=min(4, len(ax.get_lines())))
+        ax.legend(fontsize=8, loc="best", ncol=min(4, len(ax.get_lines())))
     axs[-1].set_xlabel(label("time t", "s"))
     info = runs[0]["info"]
     axs[0].set_title(title or (f"{info.get('scenario', '')} on {info.get('vehicle', '')} ({info.get('scene', '')})"
