@@ -34,9 +34,10 @@ def _raw_us_per_agent_step(env, n: int) -> float:
 
 def _env_us_per_step(env, n: int) -> float:
     env.reset(seed=0)
-    a = np.zeros(env.action_space.shape, dtype=np.float32)
+    phys = np.zeros(env.action_space.shape)
     if env_id_is_hover(env):
-        a[0] = env.unwrapped.vehicle.hover_collective_pct
+        phys[0] = env.unwrapped.vehicle.hover_collective_pct
+    a = env.unwrapped.normalize_action(phys)  # actions are normalised to [-1, 1]
     t0 = time.process_time()
     for _ in range(n):
         _, _, term, trunc, _ = env.step(a)
@@ -71,7 +72,7 @@ def main() -> None:
         venv.reset(seed=0)
         a = np.zeros(venv.action_space.shape, dtype=np.float32)
         if env_id.endswith("Hover-v0"):
-            a[:, 0] = 80.0
+            a[:, 0] = 0.6  # collective 80 % on the normalised scale (50 + 50 a)
         t0 = time.process_time()
         for _ in range(n // args.num_envs):
             venv.step(a)

@@ -91,7 +91,7 @@ def _available():
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rotorlab", formatter_class=HelpFormatter,
-        description="A virtual rotorcraft lab: MuJoCo digital twins, identification and structured H-inf tuning of "
+        description="A virtual rotorcraft lab: MuJoCo digital twins, identification and structured H-inf tuning of\n"
                     "multirotor attitude control. rotorlab COMMAND --help describes each command.")
     sub = parser.add_subparsers(dest="command", required=True)
     for name, mod in _available():

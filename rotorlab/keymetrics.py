@@ -85,8 +85,10 @@ _NOT_RESULTS = ("hf_cut_hz", ".band", "from_deg", "to_deg", ".t_s", "mean_ref_de
                 "hf_fraction", "time_saturated_s", "peak_time_s", "steps.mean.peak", "steady_state_error")
 
 # unit from the name's suffix (the project's convention: names carry units)
-_SUFFIX_UNITS = (("_N_per_rad", "N/rad"), ("_N_per_rad2_s2", "N/(rad/s)^2"), ("_pct", "%"), ("_deg", "deg"), ("_dps", "deg/s"), ("_mps", "m/s"), ("_s", "s"), ("_m", "m"),
-                 ("_Nm", "N m"), ("_N", "N"), ("_hz", "Hz"), ("_rad_s", "rad/s"))
+# (tried longest first, so "_rad_s" is rad/s and not s)
+_SUFFIX_UNITS = sorted({"_N_per_rad": "N/rad", "_N_per_rad2_s2": "N/(rad/s)^2", "_pct": "%", "_deg": "deg",
+                        "_dps": "deg/s", "_mps": "m/s", "_s": "s", "_m": "m", "_Nm": "N m", "_N": "N", "_hz": "Hz",
+                        "_rad_s": "rad/s"}.items(), key=lambda kv: -len(kv[0]))
 # unit of a command metric (commands are in %) and of the angle metrics without a suffix
 _LEAF_UNITS = {"rms": "%", "peak": "%", "hf_power": "%^2", "peak_deviation": "deg", "iae": "deg s"}
 

@@ -418,3 +418,25 @@ def test_report_tables_are_well_formed_and_lead_with_the_key_metrics(run):
         assert all(re.search(r"\[[^\]]+\] \|", r) for r in rows), rows  # a unit on every key metric
         sets = list(s["validation"][sc])
         assert cells(rows[0])[1:] == [f" {fmt(lookup(s['validation'][sc][n], keys[sc]))} " for n in sets]
+
+
+def test_readme_headline_is_the_seeded_quick_run(run):
+    """README.md's headline block is this run's report headline, number for number (docs/readme_numbers.py
+    writes it from the same seeded quick run; after a change that moves the numbers, run that script)."""
+    import importlib.util
+    from pathlib import Path
+
+    spec = importlib.util.spec_from_file_location("readme_numbers",
+                                                  Path(__file__).parents[1] / "docs" / "readme_numbers.py")
+    rn = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rn)
+    assert rn.RUN == {"vehicle": "anteos-p2a2", "level": LEVEL, "seed": 3, "executor": "local", "workers": 2}
+    md = (stage_dir(run[0], "report") / "report.md").read_text()
+    readme = rn.readme_block(rn.README.read_text(encoding="utf-8"))
+    assert readme == rn.block(md), "README.md's headline is stale: run python docs/readme_numbers.py"
+    # and the block's numbers are summary.json's: the h_lim row, for one
+    s = _summary(run[0])
+    header, rows = report_rows(s)
+    h_row = next(r for r in rows if r[0].startswith("model: robust-stability limit"))
+    assert "| " + " | ".join(h_row) + " |" in readme
+    assert all(f"{s['h_lim'][k]:.3f}" in readme for k in header[1:5])
