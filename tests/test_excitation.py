@@ -123,3 +123,15 @@ def test_design_campaign_concentrates_power_in_the_band():
         assert design_campaign((0.7 * wc, 1.4 * wc)).holds == (i, i, i)
     with pytest.raises(ConfigError, match="amplitude"):
         design_campaign((4.0, 8.0), n_segments=4)
+
+
+def test_experiments_stage_says_when_the_band_is_missed():
+    from rotorlab.pipeline.stages.experiments import excitation_check
+    from rotorlab.vehicles import load_vehicle
+
+    spec = load_vehicle("anteos-p2a2")
+    fast = prbs(dt=DT, duration_s=120.0, hold_range_s=(0.1, 0.2), amplitude=9.0, seed=0)  # power near 20 rad/s
+    chk = excitation_check(fast, spec)
+    assert chk["band_rad_s"] == [4.0, 8.0] and chk["band_fraction"] < 0.3 and "4-8 rad/s" in chk["warning"]
+    slow = prbs(dt=DT, duration_s=120.0, hold_range_s=(0.4, 0.8), amplitude=9.0, seed=0)
+    assert excitation_check(slow, spec)["warning"] is None
