@@ -34,8 +34,10 @@ def test_full_order_structure_reaches_hinfsyn():
     K, CL, gam, _ = ct.hinfsyn(P, 1, 1)
     gam_opt = lti.hinfnorm(CL)[0]
     r = hinfstruct(P, FixedOrderSS(K.nstates, 1, 1, seed=3), 1, 1, starts=2, seed=1)
-    # the full-order optimum is a lower bound (up to hinfsyn's own gamma-iteration tolerance)
-    assert r.gamma >= gam_opt * (1 - 1e-4)
+    # the full-order optimum is a lower bound up to hinfsyn's own gamma-iteration tolerance, which is
+    # coarser than 1e-4: the engine's controller here is 0.08 % below hinfsyn's (0.74236 vs 0.74295, the
+    # closed loop's norm confirmed on a 20000-point grid up to 1e8 rad/s)
+    assert r.gamma >= gam_opt * (1 - 1e-3)
     assert r.gamma <= gam_opt * 1.01
 
 
@@ -129,3 +131,96 @@ def test_batched_channel_gradients_match_finite_differences():
         vp, vm = prob.evaluate_points(tp, pts)[0], prob.evaluate_points(tm, pts)[0]
         for g, a, b in zip(grads, vp, vm):
             np.testing.assert_allclose(g[i], (a - b) / (2 * h), rtol=1e-5, atol=1e-7)
+
+
+def _gain22_plant():
+    # x1' = 20 x1 + 2 x2 + u1 + w1: no closed loop is stable unless the first loop gain beats about -20
+    A = np.array([[20.0, 2.0, 0.0], [0.0, -1.0, 1.0], [-3.0, 0.0, -2.0]])
+    B = np.hstack([np.eye(3), np.zeros((3, 2)), np.array([[1.0, 0.0], [0.0, 0.0], [0.0, 1.0]])])
+    C = np.vstack([np.eye(3), np.zeros((2, 3)), np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])])
+    D = np.zeros((7, 7))
+    D[3:5, 5:7] = 0.05 * np.eye(2)
+    D[5:7, 3:5] = 0.1 * np.eye(2)
+    return ct.ss(A, B, C, D)
+
+
+def test_stabilisation_phase_finds_a_large_gain_from_zero():
+    P = _gain22_plant()
+    r = hinfstruct(P, "static", 2, 2, starts=1)  # K = 0 start: spectral abscissa 20
+    k11 = r.params["K.k[0,0]"]
+    assert k11 < -20.0
+    assert lti.is_stable(closed_loop(P, 2, 2, r.controller))
+    # the x1 loop alone: z1 = x1 from w1 is 1/(s - 20 - k11) with a DC peak 1/|20 + k11| <= gamma
+    assert r.gamma >= 1.0 / abs(20.0 + k11) - 1e-9
+
+
+def test_not_stabilisable_only_with_a_certificate():
+    from rotorlab.tune.hinfstruct import StabilisationError
+
+    # unstable mode at +1 that u cannot reach: the PBH test certifies it
+    Pu = ct.ss(np.diag([1.0, -1.0]), [[1.0, 0.0], [0.0, 1.0]], [[1.0, 1.0], [1.0, 1.0]], np.zeros((2, 2)))
+    with pytest.raises(NotStabilisableError, match=r"1\+0j: not controllable from u \(PBH rank test\)\. The minimised spectral abscissa .* is 1 "):
+        hinfstruct(Pu, "static", 1, 1)
+    # double integrator with position-only static feedback: s^2 - k is never stable, yet no mode is fixed
+    # (the poles move with k), so the engine must not claim a proof
+    Pd = ct.ss([[0.0, 1.0], [0.0, 0.0]], [[0.0, 0.0], [1.0, 1.0]], [[1.0, 0.0], [1.0, 0.0]], np.zeros((2, 2)))
+    with pytest.raises(StabilisationError, match="not a proof") as exc:
+        hinfstruct(Pd, "static", 1, 1)
+    assert not isinstance(exc.value, NotStabilisableError)
+
+
+@pytest.mark.filterwarnings("ignore::FutureWarning")
+def test_full_order_from_a_random_start_reaches_hinfsyn_on_an_unstable_plant():
+    G = ct.tf([1], [1, -0.5])
+    P = ct.minreal(ct.augw(G, ct.tf([0.5, 2], [1, 0.02]), ct.tf([0.5, 0.1], [0.01, 1])), verbose=False)
+    _, CL, _, _ = ct.hinfsyn(P, 1, 1)
+    gam_opt = lti.hinfnorm(CL)[0]
+    r = hinfstruct(P, FixedOrderSS(P.nstates, 1, 1, seed=0), 1, 1, starts=1, seed=0)
+    # lower side: hinfsyn's gamma iteration stops about 1e-4 above the optimum (the engine lands below it)
+    assert gam_opt * (1 - 1e-3) <= r.gamma <= gam_opt * 1.01
+
+
+def test_starts_run_through_the_executor_and_are_scaled():
+    from rotorlab.executor import SerialExecutor
+
+    P = _gain22_plant()
+    r = hinfstruct(P, "static", 2, 2, starts=3, seed=5, executor=SerialExecutor())
+    assert len(r.starts) == 3 and np.all(np.isfinite(r.starts))
+    r2 = hinfstruct(P, "static", 2, 2, starts=3, seed=5, n_jobs=2)
+    assert r2.starts == r.starts  # same seed, same result on another executor
+
+
+def _sof_5x2x3():
+    # 5 states (one mode at +0.3), 2 controls, 3 measurements, as drawn from seed 0
+    rng = np.random.default_rng(0)
+    n, m, p = 5, 2, 3
+    A = rng.standard_normal((n, n))
+    A -= (np.max(np.linalg.eigvals(A).real) - 0.3) * np.eye(n)
+    B = np.hstack([rng.standard_normal((n, 2)), np.zeros((n, p)), rng.standard_normal((n, m))])
+    C = np.vstack([rng.standard_normal((2, n)), np.zeros((m, n)), rng.standard_normal((p, n))])
+    D = np.zeros((2 + m + p, 2 + p + m))
+    D[2:2 + m, 2 + p:] = 0.3 * np.eye(m)
+    D[2 + m:, 2:2 + p] = 0.1 * np.eye(p)
+    return ct.ss(A, B, C, D)
+
+
+def test_descends_past_where_the_previous_engine_stopped():
+    P = _sof_5x2x3()
+    # where the previous trust-region SQP engine ended from K = 0 (its 60-iteration budget spent)
+    K_old = np.array([[1.4916700502248326, -0.40411406675214173, 0.7123833096995359],
+                      [9.242452647311087, -5.910158887567185, 3.0267501385738678]])
+
+    def gamma(K):
+        return lti.hinfnorm(closed_loop(P, 3, 2, ct.ss(K)))[0]
+
+    g_old = gamma(K_old)
+    assert g_old == pytest.approx(2.2643, rel=1e-4)
+    # not a stationary point: a plain central-difference gradient step lowers gamma
+    h = 1e-6
+    grad = np.array([(gamma(K_old + h * E) - gamma(K_old - h * E)) / (2 * h)
+                     for E in np.eye(6).reshape(6, 2, 3)]).reshape(2, 3)
+    assert gamma(K_old - 1e-3 * grad / np.linalg.norm(grad)) < g_old
+    r = hinfstruct(P, StaticGain(3, 2, value=K_old), 3, 2, starts=1)
+    assert r.gamma < 0.97 * g_old
+    assert r.stationarity < 1e-3
+    assert r.gamma == pytest.approx(gamma(r.controller.D), rel=1e-9)

@@ -112,6 +112,15 @@ class StaticGain(Block):
         return (np.zeros((0, 0)), np.zeros((0, self.ny)), np.zeros((self.nu, 0)),
                 np.asarray(theta, float).reshape(self.nu, self.ny))
 
+    def matrix_derivatives(self, theta, idx):
+        """Exact: the map is linear, d K / d k[i,j] is the unit matrix E_ij."""
+        out = []
+        for i in idx:
+            dD = np.zeros(self.nu * self.ny)
+            dD[i] = 1.0
+            out.append((np.zeros((0, 0)), np.zeros((0, self.ny)), np.zeros((self.nu, 0)), dD.reshape(self.nu, self.ny)))
+        return out
+
 
 def _pid_parts(kp, ki, kd, tf, dt, integral, derivative):
     """Integrator and derivative-filter realisations, forward Euler when ``dt > 0`` (as rotorlab.lti.pid_tf):
@@ -245,6 +254,15 @@ class FixedOrderSS(Block):
             params += [Param(f"{tag}[{i},{j}]", float(M[i, j])) for i in range(M.shape[0]) for j in range(M.shape[1])]
         self._n = n
         super().__init__(name, params, ny, nu, n, dt)
+
+    def matrix_derivatives(self, theta, idx):
+        """Exact: every parameter is one matrix entry, its derivative a unit matrix."""
+        out = []
+        for i in idx:
+            e = np.zeros(len(self.params))
+            e[i] = 1.0
+            out.append(self.matrices(e))
+        return out
 
     def matrices(self, theta):
         n, ny, nu = self._n, self.ny, self.nu

@@ -29,7 +29,7 @@ import numpy as np
 from rotorlab import lti
 from rotorlab.errors import ConfigError
 from rotorlab.tune import cascade as cas
-from rotorlab.tune.hinfstruct import Channel, _Problem, closed_loop, run_starts
+from rotorlab.tune.hinfstruct import Channel, StartFailure, _Problem, closed_loop, run_starts
 
 __all__ = ["Goal", "Tracking", "CrossoverBand", "Sensitivity", "Rejection", "Effort", "Margins", "Poles",
            "GoalResult", "highpass_max_gain", "evaluate", "tune_cascade", "TuneResult", "format_report"]
@@ -365,17 +365,17 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
                          tol=tol, time_limit_s=time_limit_s, spread=0.3, progress=progress)
     best, best_key, per_start = None, None, []
     for r in results:
-        if r is None:
+        if isinstance(r, StartFailure):
             per_start.append(np.inf)
             continue
-        th, merit, hist = r
+        th, merit, hist = r[:3]
         per_start.append(float(merit[1]) if merit[0] <= 1e-9 else np.inf)
         key = (merit[0] > 1e-9, merit[0], merit[1])
         if best_key is None or key < best_key:
             best, best_key = r, key
     if best is None:
         raise ValueError("no start stabilises the cascade on every model; start from gains that do")
-    th, _, hist = best
+    th, _, hist = best[:3]
     gs = cas.theta_to_gains(S, th, name=name, axis=spec.axis)
     rep = evaluate(spec, gs, models)
     return TuneResult(gs, rep, objective(rep), list(map(float, hist)), per_start, time.perf_counter() - t0)

@@ -1,28 +1,53 @@
-"""Structured (fixed-order, fixed-structure) H-inf synthesis, in the spirit of Apkarian & Noll (2006) and
-MATLAB's ``hinfstruct`` / ``systune``.
+"""Structured (fixed-order, fixed-structure) H-inf synthesis, in the spirit of Apkarian & Noll (2006),
+MATLAB's ``hinfstruct`` / ``systune`` and HIFOO / HANSO (Burke, Lewis, Overton).
 
 The problem ``min_theta ||F_l(P, K(theta))||_inf`` subject to internal stability is non-convex and
-non-smooth: the norm is a maximum over frequency of the largest singular value. It is solved here as an
-epigraph problem over an adaptively refined set of active frequencies::
+non-smooth: the norm is a maximum over frequency of the largest singular value. Every start runs two phases.
 
-    minimise t  s.t.  sigma_max(W(w_i) T(theta, j w_i)) <= t   for the active frequencies w_i
-                      closed-loop eigenvalues inside the stability region
+Stabilisation. The spectral abscissa of the closed loop (spectral radius - 1 when discrete; pole-region terms
+included when the caller asks for them) is minimised by nonsmooth BFGS with weak Wolfe steps, with no step
+cap, until it is negative, with random restarts of the size of the best point. A start that cannot stabilise
+reports the minimised abscissa and a certificate: unstable modes that no controller of the structure moves
+(PBH rank test on the plant, or an eigenvalue shared by the closed loops of random controllers).
+:class:`NotStabilisableError` is raised only with such a certificate; otherwise :class:`StabilisationError`
+says what was tried and how far it got.
 
-with ``scipy.optimize.minimize(method="SLSQP")``, analytic gradients of the singular values
-(``d sigma = Re(u^H dT v)`` with ``dT = P12 (I - K P22)^-1 dK (I - P22 K)^-1 P21``) and of the eigenvalues
-(``d lambda = y^H dA x / y^H x``), inside a trust region whose steps are accepted only when the objective
-re-evaluated on the whole frequency axis decreases. After every step the local peaks of the new singular
-value curve (dense grid, then a bounded scalar refinement, plus the exact ab13dd peak) join the active set,
-so the method tracks moving and newly appearing peaks instead of stalling at a kink.
+Optimisation: a hybrid, alternated in rounds until a whole round gains less than ``tol``:
+
+1. the tangent program of Apkarian & Noll over the full active set of peak frequencies (every local maximum
+   of each channel on a dense grid refined by zooming, the exact ab13dd peak, and the frequencies of the
+   closed-loop modes, where lightly damped resonances narrower than the grid spacing peak)::
+
+       minimise t  s.t.  sigma_max(W(w_i) T(theta, j w_i)) <= t   for the active frequencies w_i
+                         closed-loop eigenvalues inside the stability region
+
+   solved by SLSQP inside a box trust region with analytic gradients of the singular values
+   (``d sigma = Re(u^H dT v)``, ``dT = P12 (I - K P22)^-1 dK (I - P22 K)^-1 P21``) and of the eigenvalues
+   (``d lambda = y^H dA x / y^H x``); steps are accepted only when the objective re-evaluated on the whole
+   axis decreases, and the active set is refreshed after every step. Its stopping test is a stationarity
+   measure: the decrease the tangent program predicts over all active frequencies, relative to gamma, which is
+   zero exactly when zero lies in the convex hull of the active gradients (Clarke stationarity of the max
+   function), not a count of small steps;
+2. BFGS on the nonsmooth objective (the exact ab13dd norm, gradient at its peak) with the weak Wolfe line
+   search of Lewis & Overton, stopped by HANSO's test (the smallest vector in the convex hull of the
+   gradients at the nearby recent iterates), a failed line search, or a stalled window.
+
+Why a hybrid: the tangent program uses the frequency structure (many peaks of equal height at the optimum
+of a MIMO or lightly damped problem, where a single-gradient method zig-zags) and certifies stationarity,
+but restarts its curvature model every outer step; BFGS accumulates curvature across steps and keeps
+descending along the non-smooth valleys where the previous engine stopped at a point with a usable gradient
+(benchmarks/bench_hinfstruct.py has the numbers). Random starts are random controllers of log-uniformly
+drawn size (three decades), each made stabilising by phase one, and run through the project's executor.
 
 The same engine serves several weighted channels at once (soft goals minimised, hard goals kept <= 1), which
-is how :mod:`rotorlab.tune.cascade` tunes against systune-like goals.
+is how :mod:`rotorlab.tune.cascade` tunes against systune-like goals: that path runs the tangent-program
+steps alone with the historical stopping test (``method="sqp"``), which keeps the tuned ANTEOS gains and the
+one-second start of benchmarks/bench_tune.py; it shares the stabilisation phase, starts and executor.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import multiprocessing
 import time
 from typing import Sequence
 
@@ -33,7 +58,8 @@ from scipy.optimize import minimize
 from rotorlab import lti
 from rotorlab.tune.blocks import Block, StaticGain, Structure
 
-__all__ = ["Channel", "HinfstructResult", "hinfstruct", "closed_loop", "optimise", "NotStabilisableError"]
+__all__ = ["Channel", "HinfstructResult", "hinfstruct", "closed_loop", "optimise", "NotStabilisableError",
+           "StabilisationError", "StartFailure", "run_starts"]
 
 
 # hard goals are enforced at this level inside the QP so that the verified value lands below 1 despite the
@@ -43,10 +69,20 @@ HARD_BOUND = 0.995
 # step anyway, so solving it to convergence (20 iterations) buys nothing: on the P2-A2 and A2-MINI/B specs
 # 10 halves the callbacks and reaches the same or lower objectives.
 SUBPROBLEM_ITERATIONS = 10
+# iterations per round of the hybrid optimiser: tangent-program steps, then at least this many BFGS steps
+SQP_ROUND = 30
+HYBRID_SUB_ITER = 60
+BFGS_ROUND = 100
 
 
 class NotStabilisableError(ValueError):
-    """No stabilising controller of the given structure was found from any start."""
+    """No controller of the given structure stabilises the plant, with a certificate: an unstable closed-loop
+    mode that no controller of the structure moves."""
+
+
+class StabilisationError(ValueError):
+    """No stabilising controller was found, without a proof that none exists (the message says what was
+    tried and the smallest spectral abscissa reached)."""
 
 
 @dataclasses.dataclass
@@ -108,6 +144,20 @@ class Channel:
         self.grid = np.logspace(np.log10(self.lo), np.log10(self.hi), self.npoints)
         self.Pgrid = self.plant_at(self.grid)
 
+    def __getstate__(self):
+        # python-control models do not pickle (a lambda inside); carry their matrices to worker processes
+        d = self.__dict__.copy()
+        d["P"] = _ss_state(self.P)
+        if isinstance(self.weight, (ct.StateSpace, ct.TransferFunction)):
+            d["weight"] = ("ss", _ss_state(lti.as_ss(self.weight)))
+        return d
+
+    def __setstate__(self, d):
+        d["P"] = _ss_from_state(d["P"])
+        if isinstance(d["weight"], tuple) and d["weight"][0] == "ss":
+            d["weight"] = _ss_from_state(d["weight"][1])
+        self.__dict__.update(d)
+
     def _weight(self, w):
         if self.weight is None:
             return np.ones(np.size(w))
@@ -130,6 +180,15 @@ class Channel:
         pts = self.points(w)
         X = np.linalg.solve(pts[:, None, None] * np.eye(A.shape[0]) - A, np.broadcast_to(B, (w.size,) + B.shape))
         return C @ X + D
+
+
+def _ss_state(sys):
+    return tuple(np.asarray(M, float) for M in (sys.A, sys.B, sys.C, sys.D)) + (float(sys.dt or 0.0),)
+
+
+def _ss_from_state(st):
+    A, B, C, D, dt = st
+    return ct.ss(A, B, C, D, dt) if dt else ct.ss(A, B, C, D)
 
 
 def closed_loop(P, nmeas: int, ncon: int, K) -> ct.StateSpace:
@@ -363,6 +422,27 @@ class _Problem:
         self.grid_points = _Points(self.channels, [(i, c.grid) for i, c in enumerate(self.channels)],
                                                [c.Pgrid for c in self.channels])
         self._peak_cache = (None, None)
+        c0 = self.channels[0]
+        # one plain H-inf channel (hinfstruct): its objective is the exact ab13dd norm
+        self.exact = (len(self.channels) == 1 and c0.exact_peak and c0.weight is None and c0.offset == 0.0
+                      and c0.mode == "max" and not c0.hard and poles is None)
+
+    def __getstate__(self):
+        d = self.__dict__.copy()
+        d["stab"] = [(_ss_state(P), nm, nc) for P, nm, nc in self.stab]
+        d["_peak_cache"] = (None, None)
+        return d
+
+    def __setstate__(self, d):
+        d["stab"] = [(_ss_from_state(st), nm, nc) for st, nm, nc in d["stab"]]
+        self.__dict__.update(d)
+
+    def exact_peak(self, theta):
+        """(H-inf norm, peak frequency rad/s) of the first channel's closed loop by ab13dd (rotorlab.lti)."""
+        ch = self.channels[0]
+        mats = _cl_matrices(ch.P, ch.nmeas, ch.ncon, *self.s.matrices(theta))
+        g, w = lti.hinfnorm(ct.ss(*mats, ch.dt) if ch.dt else ct.ss(*mats), tols=(1e-8,))
+        return g, (w if np.isfinite(w) else ch.lo)
 
     def theta(self, x):
         th = self.theta0.copy()
@@ -486,9 +566,25 @@ class _Problem:
         out = [[] for _ in self.channels]
         for ci, _, _, v, w in cand:
             out[ci].append((float(v), float(w)))
+        if self.exact:
+            out[0] += self._exact_points(theta)
         out = [sorted(o, reverse=True) for o in out]
         self._peak_cache = (key, out)
         return out
+
+    def _exact_points(self, theta):
+        """The ab13dd peak and the frequencies of the closed-loop modes (where lightly damped resonances
+        narrower than the grid spacing peak), as (value, w) pairs of the plain H-inf channel."""
+        ch = self.channels[0]
+        g, wpk = self.exact_peak(theta)
+        lam = np.linalg.eigvals(_cl_A(_partition(ch.P, ch.nmeas, ch.ncon), *self.s.matrices(theta)))
+        wm = np.abs(np.angle(lam)) / ch.dt if ch.dt else np.abs(lam.imag)
+        wm = np.unique(np.clip(wm[wm > 0], ch.lo, ch.hi))
+        pts = [(float(g), float(min(max(wpk, ch.lo), ch.hi)))]
+        if wm.size:
+            v = self.evaluate_points(theta, _Points(self.channels, [(0, wm)]))[0][0]
+            pts += [(float(a), float(b)) for a, b in zip(v, wm) if a >= 0.3 * g]
+        return sorted(pts, reverse=True)
 
     def values(self, theta):
         """Peak value of every channel (grid + refinement): list of (value, w_peak)."""
@@ -555,16 +651,17 @@ class _Subproblem:
         return self._eval(z)[2]
 
 
-def optimise(prob: _Problem, theta_start, *, max_iter=60, tol=1e-4, time_limit_s=None, lower=None, upper=None):
-    """Trust-region epigraph SQP from a stabilising ``theta_start``; returns (theta, merit, history)."""
-    t0 = time.perf_counter()
-    x = prob.x_of(theta_start)
-    lo = prob.x_of(lower) if lower is not None else np.full(x.shape, -np.inf)
-    hi = prob.x_of(upper) if upper is not None else np.full(x.shape, np.inf)
-    m = prob.merit(prob.theta(x))
-    if not np.isfinite(m[1]):
-        raise NotStabilisableError("the start does not stabilise the closed loop")
-    history = [m[1]]
+def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, stationary_stop=False,
+         sub_iter=SUBPROBLEM_ITERATIONS):
+    """Trust-region epigraph SQP steps (the tangent program of Apkarian & Noll over the active peak
+    frequencies, solved by SLSQP inside a box trust region).
+
+    ``stationary_stop=False`` keeps the cascade tuner's historical test (three accepted steps that each gain
+    less than ``tol``). With ``stationary_stop=True`` the iteration stops on the stationarity measure instead:
+    the decrease predicted by the tangent program over every active frequency, relative to the objective; it
+    is zero exactly when zero lies in the convex hull of the active gradients (a Clarke-stationary point of the
+    max function over the active set). Returns (x, merit, last predicted relative decrease).
+    """
     nch = len(prob.channels)
     active = [[] for _ in range(nch)]
     activeP = [[] for _ in range(nch)]
@@ -573,7 +670,7 @@ def optimise(prob: _Problem, theta_start, *, max_iter=60, tol=1e-4, time_limit_s
         held = [ci for ci in range(nch) if active[ci]]
         if held:  # drop active frequencies far below the current level: they never bind
             pts = _Points(prob.channels, [(ci, active[ci]) for ci in held],
-                                      [np.array(activeP[ci]) for ci in held])
+                          [np.array(activeP[ci]) for ci in held])
             for ci, vals in zip(held, prob.evaluate_points(theta, pts)[0]):
                 keep = vals >= 0.3 * vals.max()
                 active[ci] = [w for w, k in zip(active[ci], keep) if k]
@@ -581,7 +678,7 @@ def optimise(prob: _Problem, theta_start, *, max_iter=60, tol=1e-4, time_limit_s
         peaks = prob.all_peaks(theta)
         for ci, ch in enumerate(prob.channels):
             found = [w for _, w in peaks[ci]]
-            if ch.exact_peak:
+            if ch.exact_peak and not prob.exact:  # the exact channel's all_peaks already holds it
                 wpk = lti.hinfnorm(closed_loop(ch.P, ch.nmeas, ch.ncon, prob.s.ss(theta)))[1]
                 if np.isfinite(wpk):
                     found.append(min(max(wpk, ch.lo), ch.hi))
@@ -600,8 +697,9 @@ def optimise(prob: _Problem, theta_start, *, max_iter=60, tol=1e-4, time_limit_s
     delta = 1.0
     stall = 0
     nx = x.size
+    pred = np.inf
     for _ in range(max_iter):
-        if time_limit_s is not None and time.perf_counter() - t0 > time_limit_s:
+        if deadline is not None and time.perf_counter() > deadline:
             break
         sub = _Subproblem(prob, active, activeP)
         t_start = max(v for (v, _), s in zip(m[2], prob.is_soft) if s) * 1.0001
@@ -609,8 +707,10 @@ def optimise(prob: _Problem, theta_start, *, max_iter=60, tol=1e-4, time_limit_s
         bnds = [(max(lo[i], x[i] - delta), min(hi[i], x[i] + delta)) for i in range(nx)] + [(0.0, None)]
         res = minimize(lambda z: z[nx], z0, jac=lambda z: np.r_[np.zeros(nx), 1.0], method="SLSQP",
                        bounds=bnds, constraints=[{"type": "ineq", "fun": sub.fun, "jac": sub.jac}],
-                       options={"maxiter": SUBPROBLEM_ITERATIONS, "ftol": 1e-9})
+                       options={"maxiter": sub_iter, "ftol": 1e-9})
         xn = np.clip(res.x[:nx], lo, hi)
+        if m[0] <= 1e-9:
+            pred = max(m[1] - res.x[nx], 0.0) / max(m[1], 1e-300)
         mn = prob.merit(prob.theta(xn))
         if np.isfinite(mn[1]):
             add_peaks(prob.theta(xn))
@@ -623,9 +723,345 @@ def optimise(prob: _Problem, theta_start, *, max_iter=60, tol=1e-4, time_limit_s
         else:
             delta *= 0.3
         history.append(m[1])
-        if stall >= 3 or delta < 1e-4:
+        if stationary_stop:
+            if (pred < tol and m[0] <= 1e-9) or delta < 1e-6:
+                break
+        elif stall >= 3 or delta < 1e-4:
             break
+    return x, m, pred
+
+
+def optimise(prob: _Problem, theta_start, *, max_iter=60, tol=1e-4, time_limit_s=None, lower=None, upper=None):
+    """Trust-region epigraph SQP from a stabilising ``theta_start`` (the constrained engine: hard goals and
+    pole regions as constraints, as :mod:`rotorlab.tune.goals` uses it); returns (theta, merit, history)."""
+    x = prob.x_of(theta_start)
+    lo = prob.x_of(lower) if lower is not None else np.full(x.shape, -np.inf)
+    hi = prob.x_of(upper) if upper is not None else np.full(x.shape, np.inf)
+    m = prob.merit(prob.theta(x))
+    if not np.isfinite(m[1]):
+        raise NotStabilisableError("the start does not stabilise the closed loop")
+    deadline = None if time_limit_s is None else time.perf_counter() + time_limit_s
+    history = [m[1]]
+    x, m, _ = _sqp(prob, x, m, lo, hi, max_iter=max_iter, tol=tol, deadline=deadline, history=history)
     return prob.theta(x), m, history
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Nonsmooth BFGS (HANSO phase 1) and the hybrid
+# ----------------------------------------------------------------------------------------------------------
+
+def _weak_wolfe(fg, x, f, g, d, c1=1e-4, c2=0.5, max_eval=40):
+    """Weak Wolfe line search by bracketing and bisection (Lewis & Overton 2013, as in HANSO): for a
+    nonsmooth ``f`` the strong Wolfe curvature test can never hold across a kink, the weak one can.
+
+    ``f`` may be inf (an unstable closed loop): such a point only shrinks the bracket. Returns
+    ``(t, x_t, f_t, g_t, ok)``; on failure the last point with sufficient decrease (t = 0: none)."""
+    gd = float(g @ d)
+    if not gd < 0:
+        return 0.0, x, f, g, False
+    lo, hi, t = 0.0, np.inf, 1.0
+    keep = (0.0, x, f, g)
+    for _ in range(max_eval):
+        xt = x + t * d
+        ft, gt = fg(xt)
+        if not np.isfinite(ft) or ft > f + c1 * t * gd:
+            hi = t
+        else:
+            keep = (t, xt, ft, gt)
+            if gt @ d < c2 * gd:
+                lo = t
+            else:
+                return t, xt, ft, gt, True
+        t = 2.0 * lo if hi == np.inf else 0.5 * (lo + hi)
+        if hi < np.inf and hi - lo <= 1e-13 * max(1.0, hi):
+            break
+    return keep + (False,)
+
+
+def _min_norm_hull(G):
+    """Smallest-norm vector of the convex hull of the columns of ``G`` (nx, k): the HANSO / gradient-sampling
+    stationarity measure. ``min ||G l||, l >= 0, sum l = 1`` as a non-negative least-squares problem with the
+    simplex equality as a heavily weighted extra row (scipy's nnls; k is at most a few dozen)."""
+    from scipy.optimize import nnls
+
+    k = G.shape[1]
+    if k == 1:
+        return G[:, 0]
+    w = 1e3 * max(np.abs(G).max(), 1e-300)
+    lam, _ = nnls(np.vstack([G, np.full((1, k), w)]), np.r_[np.zeros(G.shape[0]), w])
+    lam = lam / max(lam.sum(), 1e-300)
+    return G @ lam
+
+
+def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None):
+    """BFGS on a nonsmooth, locally Lipschitz function with weak Wolfe steps (Lewis & Overton). Stops when
+    ``f < target``, when the smallest vector in the convex hull of the gradients at the recent iterates
+    within a small radius is below ``tol * max(1, |f|)`` (HANSO's test), when the line search finds no
+    decrease, or when the last ``max(20, 3 n)`` iterations together gained less than ``tol / 10``."""
+    n = x.size
+    H = np.eye(n)
+    scaled = False
+    near = [(x, g)]
+    window = max(20, 3 * n)
+    track = [f]
+    for _ in range(max_iter):
+        if (target is not None and f < target) or (deadline is not None and time.perf_counter() > deadline):
+            break
+        d = -H @ g
+        t, xn, fn, gn, ok = _weak_wolfe(fg, x, f, g, d)
+        if t == 0.0:
+            if scaled:  # a stale metric: retry once along the steepest descent direction
+                H, scaled = np.eye(n), False
+                continue
+            break
+        s, y = xn - x, gn - g
+        x, f, g = xn, fn, gn
+        history.append(f)
+        track.append(f)
+        sy = float(s @ y)
+        if ok and sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
+            if not scaled:
+                H = (sy / float(y @ y)) * np.eye(n)
+                scaled = True
+            r = 1.0 / sy
+            Hy = H @ y
+            H = H - r * (np.outer(s, Hy) + np.outer(Hy, s)) + (r * r * float(y @ Hy) + r) * np.outer(s, s)
+        radius = 1e-4 * max(1.0, np.linalg.norm(x))
+        near = [(xi, gi) for xi, gi in near if np.linalg.norm(xi - x) <= radius][-n:] + [(x, g)]
+        if np.linalg.norm(_min_norm_hull(np.column_stack([gi for _, gi in near]))) <= tol * max(1.0, abs(f)):
+            break
+        if len(track) > window and track[-window - 1] - f <= 0.1 * tol * max(abs(f), 1e-300):
+            break
+    return x, f, g
+
+
+class _Objective:
+    """f(x) = the largest soft channel value (exact ab13dd norm for the plain H-inf channel) and its gradient
+    at the peak frequency; inf outside the bounds or where the closed loop is not stable."""
+
+    def __init__(self, prob: _Problem, lo, hi):
+        self.prob, self.lo, self.hi = prob, lo, hi
+        self.evals = 0
+
+    def __call__(self, x):
+        self.evals += 1
+        prob = self.prob
+        if np.any(x < self.lo) or np.any(x > self.hi):
+            return np.inf, None
+        th = prob.theta(x)
+        if not prob.stable(th):
+            return np.inf, None
+        if prob.exact:
+            ch = prob.channels[0]
+            f, w = prob.exact_peak(th)
+            ci = 0
+        else:
+            pk = prob.all_peaks(th)
+            f, ci, w = max((pk[ci][0][0], ci, pk[ci][0][1]) for ci in range(len(pk)) if prob.is_soft[ci])
+            ch = prob.channels[ci]
+        w = min(max(w, ch.lo), ch.hi)
+        _, grads = prob.evaluate_points(th, _Points(prob.channels, [(ci, np.array([w]))]), grad=True)
+        return float(f), grads[0][:, 0] * prob.scale
+
+
+def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadline):
+    """Rounds of (1) the tangent program over every active peak frequency (trust-region SQP, stopped on its
+    stationarity measure) and (2) nonsmooth BFGS with weak Wolfe steps, until a whole round gains less than
+    ``tol`` relative; returns (theta, merit, history, last predicted relative decrease)."""
+    x = prob.x_of(theta_start)
+    lo, hi = prob.x_of(lower), prob.x_of(upper)
+    fg = _Objective(prob, lo, hi)
+    m = prob.merit(prob.theta(x))
+    if not np.isfinite(m[1]):
+        raise NotStabilisableError("the start does not stabilise the closed loop")
+    history = [m[1]]
+    pred = np.inf
+    while len(history) <= max_iter:
+        f_round = m[1]
+        x, m, pred = _sqp(prob, x, m, lo, hi, max_iter=min(SQP_ROUND, max_iter + 1 - len(history)), tol=tol,
+                          deadline=deadline, history=history, stationary_stop=True, sub_iter=HYBRID_SUB_ITER)
+        f, g = fg(x)
+        x, f, g = _bfgs(fg, x, f, g, max_iter=min(max(BFGS_ROUND, 10 * x.size), max_iter + 1 - len(history)),
+                        tol=tol, deadline=deadline, history=history)
+        m = prob.merit(prob.theta(x))
+        if f_round - m[1] <= tol * f_round or (deadline is not None and time.perf_counter() > deadline):
+            break
+    return prob.theta(x), m, history, pred
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Stabilisation phase and its certificate
+# ----------------------------------------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class StartFailure:
+    """A start that found no stabilising controller: the minimised spectral abscissa (continuous) or spectral
+    radius - 1 (discrete), both less the stability margin and pole-region terms, and the closed-loop modes no
+    controller of the structure moves (the certificate, empty when none was found)."""
+
+    abscissa: float
+    fixed_modes: list
+    iterations: int
+
+
+class _Abscissa:
+    """phi(x) = -min(stability terms): the spectral abscissa (continuous) or spectral radius - 1 (discrete),
+    plus the stability margin, pole-region terms included; its gradient from the eigenvalue derivatives."""
+
+    def __init__(self, prob, lo, hi):
+        self.prob, self.lo, self.hi = prob, lo, hi
+
+    def __call__(self, x):
+        if np.any(x < self.lo) or np.any(x > self.hi):
+            return np.inf, None
+        g, dg = self.prob.eig_terms(self.prob.theta(x), grad=True)
+        i = int(np.argmin(g))
+        return -float(g[i]), -dg[:, i]
+
+
+def _fixed_modes(prob: _Problem, theta, rng, tol=1e-6):
+    """Unstable closed-loop modes that no controller of this structure moves.
+
+    Two kinds of evidence: the PBH test on the plant (``rank [lam I - A, B2] < n`` or ``rank [lam I - A; C2]
+    < n``: a mode u cannot reach or y cannot see is a closed-loop eigenvalue for every LTI controller), and,
+    for structural fixed modes, an eigenvalue shared by the closed loops of three random controllers of
+    widely different size. Returns a list of (eigenvalue, reason)."""
+    out = []
+    for (P, _, _), part, dt in zip(prob.stab, prob._parts, prob._stab_dt):
+        A, B2, C2 = part["A"], part["B2"], part["C2"]
+        n = A.shape[0]
+        unstable = (lambda lam: np.abs(lam) >= 1.0) if dt else (lambda lam: lam.real >= 0.0)
+        lam0 = np.linalg.eigvals(A) if n else np.zeros(0)
+        for lam in lam0[unstable(lam0)]:
+            sc = max(1.0, np.abs(A).max())
+            if np.linalg.matrix_rank(np.hstack([lam * np.eye(n) - A, B2]), tol * sc) < n:
+                out.append((complex(lam), "not controllable from u (PBH rank test)"))
+            elif np.linalg.matrix_rank(np.vstack([lam * np.eye(n) - A, C2]), tol * sc) < n:
+                out.append((complex(lam), "not observable from y (PBH rank test)"))
+        Km = prob.s.matrices(theta)
+        lam_t = np.linalg.eigvals(_cl_A(part, *Km))
+        samples = []
+        for mag in (0.1, 3.0, 100.0):
+            th = np.asarray(theta, float).copy()
+            th[prob.free] = mag * rng.standard_normal(prob.free.sum())
+            try:
+                samples.append(np.linalg.eigvals(_cl_A(part, *prob.s.matrices(th))))
+            except (ValueError, np.linalg.LinAlgError):
+                continue
+        for lam in lam_t[unstable(lam_t)]:
+            if any(abs(lam - l0) < 1e-6 * max(1.0, abs(lam)) for l0, _ in out):
+                continue
+            if samples and all(np.min(np.abs(s - lam)) < 1e-6 * max(1.0, abs(lam)) for s in samples):
+                why = "a closed-loop eigenvalue for every sampled controller of this structure (structural fixed mode)"
+                out.append((complex(lam), why))
+    return out
+
+
+def _stabilise(prob: _Problem, theta, lower, upper, rng, max_iter=200, tries=3):
+    """Phase 1: minimise the spectral abscissa (spectral radius - 1 when discrete) by nonsmooth BFGS with weak
+    Wolfe steps, without step caps, until the closed loop is stable. After a failed try, restart from a random
+    point of the size of the best one found (and of at least one scaled unit). Returns the stabilising theta,
+    or a :class:`StartFailure` with the minimised abscissa and the fixed-mode certificate."""
+    lo, hi = prob.x_of(lower), prob.x_of(upper)
+    fa = _Abscissa(prob, lo, hi)
+    x = prob.x_of(theta)
+    f, g = fa(x)
+    if f < 0:
+        return theta
+    best = (f, x)
+    iters = 0
+    for k in range(tries):
+        hist = []
+        x, f, g = _bfgs(fa, x, f, g, max_iter=max_iter, tol=1e-10, deadline=None, history=hist, target=0.0)
+        iters += len(hist)
+        if f < 0:
+            # a little further into the stable region, so the H-inf phase does not start at the boundary
+            hist = []
+            x2, f2, _ = _bfgs(fa, x, f, g, max_iter=20, tol=1e-10, deadline=None, history=hist,
+                              target=f - 0.05 * max(abs(f), 1e-3))
+            return prob.theta(x2 if f2 < f else x)
+        if f < best[0]:
+            best = (f, x)
+        if k + 1 < tries:
+            x = np.clip(best[1] + max(1.0, np.linalg.norm(best[1])) * rng.standard_normal(x.size)
+                        / np.sqrt(x.size), lo, hi)
+            f, g = fa(x)
+            while not np.isfinite(f):
+                x = np.clip(best[1] + rng.standard_normal(x.size), lo, hi)
+                f, g = fa(x)
+    th = prob.theta(best[1])
+    return StartFailure(float(best[0]), _fixed_modes(prob, th, rng), iters)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Starts
+# ----------------------------------------------------------------------------------------------------------
+
+def _perturbed_start(prob: _Problem, theta0, rng, spread, lower, upper):
+    """Log-normal multiplicative perturbation of ``theta0`` (the cascade tuner's starts: PID gains keep their
+    sign and order of magnitude)."""
+    th = theta0.copy()
+    f = prob.free
+    base = th[f]
+    mag = np.where(np.abs(base) > 1e-12, np.abs(base), np.median(np.abs(base[np.abs(base) > 1e-12]))
+                   if np.any(np.abs(base) > 1e-12) else 1.0)
+    th[f] = base * np.exp(spread * rng.standard_normal(base.size)) * np.where(np.abs(base) > 1e-12, 1.0, 0.0) \
+        + np.where(np.abs(base) > 1e-12, 0.0, mag * spread * rng.standard_normal(base.size))
+    return np.clip(th, lower, upper)
+
+
+def _scaled_start(prob: _Problem, theta0, rng, lower, upper, decades=(-1.5, 1.5)):
+    """A random controller of random size: a Gaussian direction in the scaled variables with an rms size drawn
+    log-uniformly over ``decades`` around the size of ``theta0`` (one scaled unit when theta0 is zero); the
+    stabilisation phase then makes it stabilising."""
+    th = theta0.copy()
+    f = prob.free
+    ref = max(float(np.sqrt(np.mean(prob.x_of(theta0) ** 2))), 1.0)
+    size = ref * 10.0 ** rng.uniform(*decades)
+    th[f] = rng.standard_normal(f.sum()) * size * prob.scale
+    return np.clip(th, lower, upper)
+
+
+def _run_start(job):
+    prob, theta, lower, upper, max_iter, tol, time_limit_s, method, seed = job
+    t0 = time.perf_counter()
+    th = _stabilise(prob, theta, lower, upper, np.random.default_rng(seed))
+    if isinstance(th, StartFailure):
+        return th
+    deadline = None if time_limit_s is None else t0 + time_limit_s
+    if method == "hybrid":
+        th, m, hist, pred = _hybrid(prob, th, lower, upper, max_iter=max_iter, tol=tol, deadline=deadline)
+        return th, m, hist, pred, time.perf_counter() - t0
+    th, m, hist = optimise(prob, th, max_iter=max_iter, tol=tol, lower=lower, upper=upper,
+                           time_limit_s=None if deadline is None else max(deadline - time.perf_counter(), 0.0))
+    return th, m, hist, np.nan, time.perf_counter() - t0
+
+
+def run_starts(prob: _Problem, theta0, lower, upper, *, starts=1, seed=0, n_jobs=1, executor=None, max_iter=60,
+               tol=1e-4, time_limit_s=None, spread=None, method="sqp", progress=False):
+    """Optimise from ``theta0`` and ``starts - 1`` seeded random starts: multiplicative perturbations of
+    theta0 with log-std ``spread`` when given (the cascade), else random controllers of log-uniform size
+    (:func:`_scaled_start`). Each start first runs the stabilisation phase.
+
+    The starts run through ``executor`` (a :class:`rotorlab.executor.Executor`), else a local process pool
+    of ``n_jobs`` workers, else in this process; the result does not depend on which. Returns one entry per
+    start: ``(theta, merit, history, predicted relative decrease, seconds)`` or a :class:`StartFailure`.
+    """
+    from rotorlab.executor import LocalExecutor, SerialExecutor, task_seeds
+
+    rng = np.random.default_rng(seed)
+    if spread is None:
+        thetas = [_scaled_start(prob, theta0, rng, lower, upper) for _ in range(max(starts, 1) - 1)]
+    else:
+        thetas = [_perturbed_start(prob, theta0, rng, spread, lower, upper) for _ in range(max(starts, 1) - 1)]
+    thetas = [np.clip(theta0, lower, upper)] + thetas
+    seeds = task_seeds(int(rng.integers(1 << 31)), len(thetas))
+    jobs = [(prob, th, lower, upper, max_iter, tol, time_limit_s, method, s) for th, s in zip(thetas, seeds)]
+    if executor is not None:
+        return list(executor.map(_run_start, jobs, desc="starts", progress=progress))
+    ex = LocalExecutor(n_jobs) if n_jobs and n_jobs > 1 else SerialExecutor()
+    with ex:
+        return list(ex.map(_run_start, jobs, desc="starts", progress=progress))
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -648,6 +1084,8 @@ class HinfstructResult:
     success: bool
     structure: Structure
     w_peak: float
+    stationarity: float = np.nan  # tangent-program predicted relative decrease at the best start's end point
+    start_times_s: list = dataclasses.field(default_factory=list)
 
 
 def _as_structure(controller, nmeas, ncon, dt) -> Structure:
@@ -662,89 +1100,13 @@ def _as_structure(controller, nmeas, ncon, dt) -> Structure:
     return Structure(list(controller))
 
 
-def _random_start(prob: _Problem, theta0, rng, spread, lower, upper):
-    th = theta0.copy()
-    f = prob.free
-    base = th[f]
-    mag = np.where(np.abs(base) > 1e-12, np.abs(base), np.median(np.abs(base[np.abs(base) > 1e-12]))
-                   if np.any(np.abs(base) > 1e-12) else 1.0)
-    th[f] = base * np.exp(spread * rng.standard_normal(base.size)) * np.where(np.abs(base) > 1e-12, 1.0, 0.0) \
-        + np.where(np.abs(base) > 1e-12, 0.0, mag * spread * rng.standard_normal(base.size))
-    return np.clip(th, lower, upper)
-
-
-def _stabilise(prob: _Problem, theta, lower, upper, max_iter=100):
-    """Phase 1: push the closed-loop eigenvalues into the stability region (maximise the smallest margin)."""
-    x = prob.x_of(theta)
-    nx = x.size
-    g0 = prob.eig_terms(theta)
-    if g0.size == 0 or g0.min() > 0:
-        return theta
-    lo, hi = prob.x_of(lower), prob.x_of(upper)
-
-    def cons_f(z):
-        return prob.eig_terms(prob.theta(z[:nx])) - z[nx]
-
-    def cons_j(z):
-        _, dg = prob.eig_terms(prob.theta(z[:nx]), grad=True)
-        return np.hstack([dg.T, -np.ones((dg.shape[1], 1))])
-
-    z = np.r_[x, g0.min()]
-    for _ in range(10):
-        bnds = [(max(lo[i], z[i] - 1.0), min(hi[i], z[i] + 1.0)) for i in range(nx)] + [(None, 1.0)]
-        res = minimize(lambda z: -z[nx], z, jac=lambda z: np.r_[np.zeros(nx), -1.0], method="SLSQP",
-                       bounds=bnds, constraints=[{"type": "ineq", "fun": cons_f, "jac": cons_j}],
-                       options={"maxiter": max_iter})
-        z = np.r_[np.clip(res.x[:nx], lo, hi), 0.0]
-        g = prob.eig_terms(prob.theta(z[:nx]))
-        z[nx] = g.min()
-        if g.min() > 0:
-            return prob.theta(z[:nx])
-    return None
-
-
-_FORKED_PROBLEM = None  # set before forking workers: python-control models do not pickle
-
-
-def _run_forked(args):
-    return _run_start((_FORKED_PROBLEM,) + tuple(args))
-
-
-def _run_start(args):
-    prob, theta, lower, upper, max_iter, tol, time_limit_s = args
-    th = _stabilise(prob, theta, lower, upper)
-    if th is None:
-        return None
-    return optimise(prob, th, max_iter=max_iter, tol=tol, time_limit_s=time_limit_s, lower=lower, upper=upper)
-
-
-def run_starts(prob: _Problem, theta0, lower, upper, *, starts=1, seed=0, n_jobs=1, max_iter=60, tol=1e-4,
-               time_limit_s=None, spread=0.5, progress=False):
-    """Optimise from ``theta0`` and ``starts - 1`` seeded random perturbations of it; list of results per start
-    (None where no stabilising point was found)."""
-    rng = np.random.default_rng(seed)
-    thetas = [np.clip(theta0, lower, upper)] + [_random_start(prob, theta0, rng, spread, lower, upper)
-                                                 for _ in range(max(starts, 1) - 1)]
-    jobs = [(prob, th, lower, upper, max_iter, tol, time_limit_s) for th in thetas]
-    if n_jobs and n_jobs > 1 and len(jobs) > 1 and "fork" in multiprocessing.get_all_start_methods():
-        from concurrent.futures import ProcessPoolExecutor
-
-        global _FORKED_PROBLEM
-        _FORKED_PROBLEM = prob
-        try:
-            with ProcessPoolExecutor(max_workers=n_jobs, mp_context=multiprocessing.get_context("fork")) as ex:
-                return list(ex.map(_run_forked, [j[1:] for j in jobs]))
-        finally:
-            _FORKED_PROBLEM = None
-    from tqdm import tqdm
-
-    return [_run_start(j) for j in tqdm(jobs, disable=not progress, desc="starts")]
-
-
 def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0, n_jobs: int = 1,
-               tol: float = 1e-4, time_limit_s: float | None = None, bounds: dict | None = None,
-               max_iter: int = 60, progress: bool = False) -> HinfstructResult:
+               executor=None, tol: float = 1e-4, time_limit_s: float | None = None, bounds: dict | None = None,
+               max_iter: int = 500, progress: bool = False) -> HinfstructResult:
     """Minimise ``||F_l(P, K(theta))||_inf`` over a fixed-structure controller subject to internal stability.
+
+    Each start runs the stabilisation phase (spectral abscissa minimised by nonsmooth BFGS) and then the
+    hybrid optimiser (nonsmooth BFGS, tangent-program polishing; see the module docstring).
 
     Parameters
     ----------
@@ -756,20 +1118,35 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     nmeas, ncon : int
         Number of measurements y (last outputs of P) and controls u (last inputs of P).
     starts : int
-        Number of starts: the blocks' current values plus ``starts - 1`` seeded random perturbations.
+        Number of starts: the blocks' current values plus ``starts - 1`` seeded random controllers whose
+        size is drawn log-uniformly over three decades around the start's size.
     seed : int or numpy.random.Generator seed
     n_jobs : int
-        Processes for the starts (blocks must then be picklable: no lambdas in Custom blocks).
+        Local worker processes for the starts when no ``executor`` is given (blocks must then pickle: no
+        lambdas in Custom blocks).
+    executor : rotorlab.executor.Executor, optional
+        Runs the starts (``executor.map``); results do not depend on it.
     tol : float
-        Relative objective decrease below which the iteration stops.
+        Stationarity tolerance: the optimiser stops when the tangent program over every active peak frequency
+        predicts less than this relative decrease of gamma.
     time_limit_s : float, optional
-        Wall-clock budget per start.
+        Wall-clock budget per start (s).
     bounds : dict, optional
         ``{"block.param": (lower, upper)}``; a parameter with lower == upper is fixed.
+    max_iter : int
+        Iteration budget per start (BFGS iterations plus tangent-program steps).
 
     Returns
     -------
     HinfstructResult
+
+    Raises
+    ------
+    NotStabilisableError
+        Only with a certificate: an unstable closed-loop mode that no controller of the structure moves.
+    StabilisationError
+        No start found a stabilising controller and no fixed mode explains it: the message gives the smallest
+        spectral abscissa reached and what was tried.
     """
     P = lti.as_ss(P)
     for tag, M in zip("ABCD", (P.A, P.B, P.C, P.D)):
@@ -802,27 +1179,44 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     scale = np.maximum(np.abs(theta0[free]), 0.1 * max(np.max(np.abs(theta0[free])), 1.0))
     ch = Channel(P, nmeas, ncon, name="hinf", exact_peak=True)
     prob = _Problem(S, [ch], [(P, nmeas, ncon)], free, scale)
-    results = run_starts(prob, theta0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, max_iter=max_iter,
-                         tol=tol, time_limit_s=time_limit_s, progress=progress)
-    verified = []
+    results = run_starts(prob, theta0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, executor=executor,
+                         max_iter=max_iter, tol=tol, time_limit_s=time_limit_s, method="hybrid", progress=progress)
+    verified, failures = [], []
     for r in results:
-        if r is None:
-            verified.append((np.inf, None, None, None))
+        if isinstance(r, StartFailure):
+            failures.append(r)
+            verified.append((np.inf, None, None, None, np.nan, np.nan))
             continue
-        th, _, hist = r
-        K = S.ss(th)
-        g, wpk = lti.hinfnorm(closed_loop(P, nmeas, ncon, K))
-        verified.append((g, th, hist, wpk))
+        th, _, hist, pred, secs = r
+        g, wpk = lti.hinfnorm(closed_loop(P, nmeas, ncon, S.ss(th)))
+        verified.append((g, th, hist, wpk, pred, secs))
     gammas = [v[0] for v in verified]
     if not np.isfinite(min(gammas)):
-        raise NotStabilisableError(
-            "no stabilising controller of this structure was found from any start: the plant may not be "
-            "stabilisable by this structure (unstable fixed modes, or too few controller states); try more "
-            "starts, a stabilising initial controller (set the block values), a higher-order block, or check "
-            "that the unstable modes are controllable from u and observable from y")
+        _raise_unstabilised(failures, len(results))
     best = int(np.argmin(gammas))
-    g, th, hist, wpk = verified[best]
+    g, th, hist, wpk, pred, _ = verified[best]
     S.set_values(th)
     return HinfstructResult(gamma=float(g), controller=S.ss(th), params=dict(zip(names, map(float, th))),
                             history=list(map(float, hist)), starts=[float(x) for x in gammas], success=True,
-                            structure=S, w_peak=float(wpk))
+                            structure=S, w_peak=float(wpk), stationarity=float(pred),
+                            start_times_s=[float(v[5]) for v in verified])
+
+
+def _raise_unstabilised(failures, nstarts):
+    best = min(failures, key=lambda f: f.abscissa)
+    fixed = {}
+    for f in failures:
+        for lam, why in f.fixed_modes:
+            fixed.setdefault(np.round(lam, 9), why)
+    if fixed:
+        modes = "; ".join(f"{lam:.6g}: {why}" for lam, why in fixed.items())
+        raise NotStabilisableError(
+            f"not stabilisable by this controller structure: the closed loop keeps the unstable mode(s) {modes}. "
+            f"The minimised spectral abscissa (spectral radius - 1 when discrete) is {best.abscissa:.6g} "
+            f"over {nstarts} start(s).")
+    raise StabilisationError(
+        f"no stabilising controller was found: {nstarts} start(s) minimised the spectral abscissa (spectral "
+        f"radius - 1 when discrete) by nonsmooth BFGS with random restarts ({sum(f.iterations for f in failures)} "
+        f"iterations in all) down to {best.abscissa:.6g} > 0, and no closed-loop mode is fixed (PBH test and "
+        "random controllers of this structure), so this is not a proof that none exists. Try more starts, a "
+        "stabilising initial controller (set the block values), or a higher-order controller.")
