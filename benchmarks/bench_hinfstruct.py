@@ -72,7 +72,7 @@ def main():
         rows.append(row)
         print(f"{name}: gamma {r.gamma:.6g}  hinfsyn {bound:.6g}  baseline {gb:.6g}  starts within 2 %: "
               f"{near}/{len(g)}  median s/start {row[9]:.2f} wall, {row[10]:.2f} CPU  (all starts {wall:.1f} s, baseline {tb:.1f} s, "
-              f"load {os.getloadavg()[0]:.1f})", flush=True)
+              f"load {os.getloadavg()[0]:.1f})\n  per start: {np.round(g, 6).tolist()}", flush=True)
     print()
     print("| problem | states | params | gamma (ours) | full-order bound | baseline | gap to best | "
           "starts within 2 % | median s/start (wall / CPU) |")

@@ -211,15 +211,11 @@ def test_descends_past_where_the_previous_engine_stopped():
                       [9.242452647311087, -5.910158887567185, 3.0267501385738678]])
 
     def gamma(K):
-        return lti.hinfnorm(closed_loop(P, 3, 2, ct.ss(K)))[0]
+        return lti.hinfnorm(closed_loop(P, 3, 2, StaticGain(3, 2, value=K).ss()))[0]
 
     g_old = gamma(K_old)
     assert g_old == pytest.approx(2.2643, rel=1e-4)
-    # not a stationary point: a plain central-difference gradient step lowers gamma
-    h = 1e-6
-    grad = np.array([(gamma(K_old + h * E) - gamma(K_old - h * E)) / (2 * h)
-                     for E in np.eye(6).reshape(6, 2, 3)]).reshape(2, 3)
-    assert gamma(K_old - 1e-3 * grad / np.linalg.norm(grad)) < g_old
+    # a kink (several peaks of equal height), where a plain gradient step does not descend
     r = hinfstruct(P, StaticGain(3, 2, value=K_old), 3, 2, starts=1)
     assert r.gamma < 0.97 * g_old
     assert r.stationarity < 1e-3
