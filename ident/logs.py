@@ -13,7 +13,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from rotorlab.errors import DataError
-from rotorlab.logformat import TIME_COLUMN, decode_metadata, encode_metadata
+from rotorlab.logformat import TIME_COLUMN, decode_metadata, write_parquet
 
 __all__ = ["Log", "load_log", "write_log", "check_identifiable"]
 
@@ -238,11 +238,6 @@ def write_log(path, table_dict: Mapping[str, Sequence[float]], units: Mapping[st
     meta : dict, optional
         JSON-serialisable run information.
     """
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    from rotorlab.atomic import atomic_path
-
     if TIME_COLUMN not in table_dict:
         raise DataError(f"write_log {path}: the table needs a time column '{TIME_COLUMN}'")
     cols = {k: np.asarray(v, dtype=float).ravel() for k, v in table_dict.items()}
@@ -252,10 +247,7 @@ def write_log(path, table_dict: Mapping[str, Sequence[float]], units: Mapping[st
     unknown = set(units or {}) - set(cols)
     if unknown:
         raise DataError(f"write_log {path}: units given for unknown column(s) {sorted(unknown)}")
-    table = pa.table(cols).replace_schema_metadata(encode_metadata(units, dict(meta or {})))
-    with atomic_path(path, suffix=".parquet") as tmp:
-        pq.write_table(table, tmp)
-    return Path(path)
+    return write_parquet(path, cols, units, meta)
 
 
 def check_identifiable(log: Log, u_cols, y_cols, order: int, horizon: int, future: int | None = None) -> None:

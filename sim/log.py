@@ -11,10 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from rotorlab import atomic
-from rotorlab.logformat import TIME_COLUMN, encode_metadata
+from rotorlab.logformat import TIME_COLUMN, encode_metadata, write_parquet
 
 
 class RunLog:
@@ -56,10 +55,8 @@ class RunLog:
         return pa.table(arrays).replace_schema_metadata(encode_metadata(self.units, meta))
 
     def write(self, path, meta: dict | None = None) -> Path:
-        """Write the Parquet file atomically."""
-        with atomic.atomic_path(path) as tmp:
-            pq.write_table(self.table(meta), tmp)
-        return Path(path)
+        """Write the Parquet file atomically (:func:`rotorlab.logformat.write_parquet`)."""
+        return write_parquet(path, self.table(meta), self.units, meta)
 
 
 def versions() -> dict:

@@ -65,6 +65,24 @@ def report_rows(s):
     return headline_rows(s)
 
 
+def test_every_parquet_the_run_wrote_carries_its_units(run):
+    """One log format: every Parquet file of the run (4 campaign runs, 4 scenarios x 4 gain sets) loads
+    through rotorlab.logformat with a unit for every column, and through the identification reader."""
+    from rotorlab.ident.logs import load_log
+    from rotorlab.logformat import FORMAT_VERSION as LOG_FORMAT
+    from rotorlab.logformat import read_parquet
+
+    files = sorted(run[0].rglob("*.parquet"))
+    assert len(files) == 4 + len(pipeline.VALIDATION_SCENARIOS) * 4
+    for f in files:
+        cols, units, meta = read_parquet(f)
+        assert set(units) == set(cols), f
+        assert units["t"] == "s" and units["q"] == "deg/s" and units["u_lon"] == "%", f
+        assert meta["format_version"] == LOG_FORMAT and "seed" in meta, f
+    log = load_log(RunFolder(run[0]).experiment_log_path("id"), columns=["u_lon", "q"])
+    assert log.units == {"t": "s", "u_lon": "%", "q": "deg/s"}
+
+
 def test_identification_recovers_the_twin(run):
     """Ground truth: the twin's delay is 0.06 s = 3 samples and its linearisation is the true model."""
     s = _summary(run[0])

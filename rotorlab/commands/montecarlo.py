@@ -22,6 +22,9 @@ from rotorlab.cli import positive_int, seed_int
 VARY = {"mass": 0.10, "inertia": 0.10, "delay": 0.02, "wind": 5.0}
 VARY_UNITS = {"mass": "relative", "inertia": "relative", "delay": "s", "wind": "m/s"}
 WIND_OPTION = {"gust": "mean_wind_mps", "hover": "wind_mps", "prbs-flight": "wind_mps"}
+#: units of the batch tables' sample columns (a metric column carries its unit in its name, e.g. rise_time_s)
+SAMPLE_UNITS = {"sample": "1", "mass_scale": "1", "inertia_scale": "1", "extra_delay_s": "s", "wind_mps": "m/s",
+                "run_seed": "1"}
 
 
 
@@ -107,12 +110,12 @@ def run_sample(task: dict) -> dict:
 
 def run(args) -> int:
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     from rotorlab import atomic
     from rotorlab.cli import CLIError
     from rotorlab.errors import RotorlabError
     from rotorlab.executor import get_executor
+    from rotorlab.logformat import write_parquet
     from rotorlab.sim import scenarios
     from rotorlab.sim.runner import resolve_gains
     from rotorlab.vehicles import load_vehicle
@@ -137,8 +140,9 @@ def run(args) -> int:
             batch = ex.map(run_sample, tasks, desc=f"runs {b0}-{b0 + len(tasks) - 1}", progress=True)
             keys = sorted(set().union(*batch))
             tbl = pa.table({k: [r.get(k) for r in batch] for k in keys})
-            with atomic.atomic_path(out / f"batch-{b0 // args.batch:04d}.parquet") as tmp:
-                pq.write_table(tbl, tmp)
+            write_parquet(out / f"batch-{b0 // args.batch:04d}.parquet", tbl,
+                          {k: u for k, u in SAMPLE_UNITS.items() if k in keys},
+                          {"scenario": args.scenario, "vehicle": v.name, "gains": gains.name, "seed": args.seed})
             rows += batch
     summary = {"scenario": args.scenario, "vehicle": v.name, "gains": gains.name, "n": args.n, "seed": args.seed,
                "vary": vary,

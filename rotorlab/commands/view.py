@@ -38,14 +38,10 @@ class _TableLog:
     """The two things :func:`record_run` reads from a log (``units`` and ``log[name]``), over a Parquet table."""
 
     def __init__(self, path: Path):
-        import pyarrow.parquet as pq
+        from rotorlab.logformat import read_parquet
 
-        from rotorlab.logformat import decode_metadata
-
-        tbl = pq.read_table(path)
-        units, _ = decode_metadata(tbl.schema.metadata)
-        self.units = units or {c: "" for c in tbl.column_names}
-        self._cols = {c: tbl.column(c).to_numpy() for c in tbl.column_names}
+        self._cols, units, _ = read_parquet(path)
+        self.units = units or {c: "" for c in self._cols}
 
     def __getitem__(self, name):
         return self._cols[name]

@@ -11,7 +11,8 @@ from rotorlab.tune.cascade import DT_S
 
 __all__ = ["FORMAT_VERSION", "DT_S", "LEVELS", "PipelineError", "PipelineOptions", "settings_for"]
 
-FORMAT_VERSION = 1  # run-folder format: a folder written by another format is refused, never mixed
+# run-folder format: a folder written by another format is refused, never mixed (2: logs in rotorlab.logformat)
+FORMAT_VERSION = 2
 
 # DT_S (imported): the published flight-software and identification sample time, 0.02 s. greybox_periods: PRBS
 # periods of ref. 002's three-axis campaign (the first settles, the rest are averaged: ten in the paper)

@@ -10,23 +10,21 @@ gust drift, test-bed tuning transferring to flight with small loss)?
 from __future__ import annotations
 
 import html
-import json
 import math
 import re
 import shutil
 from pathlib import Path
 
 import numpy as np
-import pyarrow.parquet as pq
 from scipy.signal import welch
 
 from rotorlab import __version__, atomic
 from rotorlab.gains import save_gains
 from rotorlab.keymetrics import flatten_metrics, fmt, key_rows
-from rotorlab.logformat import decode_metadata
 from rotorlab.lti import d2c_zoh, freqresp
+from rotorlab.logformat import read_parquet
 from rotorlab.pipeline import tuhh_report
-from rotorlab.pipeline.runfolder import Stage, StageContext, read_log
+from rotorlab.pipeline.runfolder import Stage, StageContext
 from rotorlab.pipeline.settings import DT_S
 from rotorlab.sim.log import RunLog
 
@@ -380,8 +378,7 @@ def _recordings(ctx: StageContext, sets, summary) -> dict:
         rank = {s: i for i, s in enumerate(order)}
         paths = sorted(paths, key=lambda q: (rank.get(q.stem.split("__")[-1], len(rank)), q.stem))[:limit]
     for p in paths:
-        units, meta = decode_metadata(pq.read_schema(p).metadata)
-        cols = read_log(p)
+        cols, units, meta = read_parquet(p)
         log = RunLog({k: u for k, u in units.items() if k != "t"}, len(cols["t"]))
         for i in range(len(cols["t"])):
             log.append(cols["t"][i], {k: cols[k][i] for k in cols if k != "t"})
