@@ -9,12 +9,13 @@ models (000_*.txt, "Bootstrap scheme for SMI", 1000 replications).
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
 from rotorlab.errors import DataError
+from rotorlab.executor import LocalExecutor
 
 from ._data import check_io
 from .freqresp import model_frf
@@ -82,6 +83,10 @@ class BootstrapResult:
                 "phase_lo": ph0 + ph_lo, "phase_hi": ph0 + ph_hi}
 
 
+def _replicate_task(task):
+    return _replicate(*task)
+
+
 def _replicate(identify, ABCK, u, y_det, chol, seeds):
     """Worker: one chunk of replications (top-level so process pools can pickle it).
 
@@ -114,7 +119,7 @@ def _unpack(d: dict) -> IdentifiedModel:
 
 
 def bootstrap(u, y, identify, n_boot: int = 1000, seed: int | None = 0, n_jobs: int = 1,
-              chunk: int | None = None, progress: bool = True) -> BootstrapResult:
+              chunk: int | None = None, progress: bool = True, mapper: Callable | None = None) -> BootstrapResult:
     """Parametric bootstrap of an identification method.
 
     Parameters
@@ -132,11 +137,15 @@ def bootstrap(u, y, identify, n_boot: int = 1000, seed: int | None = 0, n_jobs: 
         Root seed; replication i uses ``SeedSequence(seed).spawn(n_boot)[i]``, so results do not depend on
         ``n_jobs`` or ``chunk``.
     n_jobs : int
-        Worker processes (1: in this process).
+        Worker processes (1: in this process) when no ``mapper`` is given; with one, the number of workers
+        it has (it sizes the chunks).
     chunk : int, optional
         Replications per task (default: about four tasks per worker).
     progress : bool
-        tqdm progress bar over completed chunks.
+        tqdm progress bar over completed chunks (without ``mapper``).
+    mapper : callable ``(fn, tasks) -> list``, optional
+        Ordered map that runs the chunks, e.g. :meth:`rotorlab.executor.Executor.map` of a Dask executor;
+        default: a local process pool of ``n_jobs`` workers. The results do not depend on it.
 
     Returns
     -------
@@ -162,27 +171,11 @@ def bootstrap(u, y, identify, n_boot: int = 1000, seed: int | None = 0, n_jobs: 
     n_jobs = max(1, int(n_jobs))
     chunk = chunk or max(1, int(np.ceil(n_boot / (4 * n_jobs))))
     chunks = [seeds[i:i + chunk] for i in range(0, n_boot, chunk)]
-    bar = None
-    if progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=n_boot, desc="bootstrap")
-    results: list = [None] * len(chunks)
-    if n_jobs == 1:
-        for i, c in enumerate(chunks):
-            results[i] = _replicate(identify, ABCK, u_in, y_det, chol, c)
-            if bar:
-                bar.update(len(c))
+    tasks = [(identify, ABCK, u_in, y_det, chol, c) for c in chunks]
+    if mapper is None:
+        with LocalExecutor(n_jobs) as ex:
+            results = ex.map(_replicate_task, tasks, desc="bootstrap", progress=progress)
     else:
-        with ProcessPoolExecutor(max_workers=n_jobs) as ex:
-            futs = {ex.submit(_replicate, identify, ABCK, u_in, y_det, chol, c): i for i, c in enumerate(chunks)}
-            from concurrent.futures import as_completed
-
-            for f in as_completed(futs):
-                results[futs[f]] = f.result()
-                if bar:
-                    bar.update(len(chunks[futs[f]]))
-    if bar:
-        bar.close()
+        results = mapper(_replicate_task, tasks)
     models = [_unpack(d) for r in results for d in r]
     return BootstrapResult(nominal=nominal, models=models, seed=seed)

@@ -7,6 +7,8 @@ Everything takes and returns python-control objects (``control.StateSpace`` / ``
 
 from __future__ import annotations
 
+import copyreg
+
 import numpy as np
 import scipy.linalg as sla
 import control as ct
@@ -28,6 +30,20 @@ __all__ = [
     "s_plane",
     "dc_gain",
 ]
+
+
+def _rebuild_ss(A, B, C, D, dt, inputs, outputs, states, name):
+    return ct.ss(A, B, C, D, dt, inputs=inputs, outputs=outputs, states=states, name=name)
+
+
+def _reduce_ss(sys):
+    return _rebuild_ss, (np.asarray(sys.A), np.asarray(sys.B), np.asarray(sys.C), np.asarray(sys.D), sys.dt,
+                         list(sys.input_labels), list(sys.output_labels), list(sys.state_labels), sys.name)
+
+
+# python-control's StateSpace holds a lambda and does not pickle; the executors send models to worker processes
+# (local pools and Dask), so a StateSpace pickles as its matrices, sample time and signal names
+copyreg.pickle(ct.StateSpace, _reduce_ss)
 
 
 def as_ss(sys) -> ct.StateSpace:

@@ -332,11 +332,13 @@ class TuneResult:
 
 
 def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: int = 1, tol: float = 1e-3,
-                 max_iter: int = 40, time_limit_s=None, name: str = "tuned", progress: bool = False) -> TuneResult:
+                 max_iter: int = 40, time_limit_s=None, name: str = "tuned", progress: bool = False,
+                 executor=None) -> TuneResult:
     """Tune the parameters listed in ``spec.tune`` against ``spec.goals`` on every model.
 
-    Returns the best start's gains (``rotorlab.gains.GainSet``), the goal report of :func:`evaluate`, the
-    objective (max normalised soft goal), the per-iteration history and each start's objective.
+    The starts run through ``executor`` (a :class:`rotorlab.executor.Executor`, e.g. the pipeline's, local or
+    Dask) or, without one, a local pool of ``n_jobs`` processes (:func:`rotorlab.tune.hinfstruct.run_starts`); the
+    result does not depend on where they ran.
     """
     from rotorlab.gains import GainSet
 
@@ -362,7 +364,7 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
     scale = np.maximum(np.abs(th0[free]), 1e-3)
     prob = _Problem(S, channels, stab, free, scale, poles=poles)
     results = run_starts(prob, th0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, max_iter=max_iter,
-                         tol=tol, time_limit_s=time_limit_s, spread=0.3, progress=progress)
+                         tol=tol, time_limit_s=time_limit_s, spread=0.3, progress=progress, executor=executor)
     best, best_key, per_start = None, None, []
     for r in results:
         if isinstance(r, StartFailure):

@@ -11,20 +11,19 @@ of ``SeedSequence(seed)``, so the results do not depend on ``n_jobs`` or on the 
 
 from __future__ import annotations
 
-import concurrent.futures as cf
-import multiprocessing
 import dataclasses
 import math
 import os
+from typing import Callable
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.signal
 import control as ct
-from tqdm.auto import tqdm
 
 from rotorlab import lti
 from rotorlab.errors import DataError
+from rotorlab.executor import LocalExecutor
 
 __all__ = ["MonteCarloResult", "montecarlo", "random_delta", "step_stats", "single_loop", "worst_case_delta",
            "MARGINAL_TOL"]
@@ -261,20 +260,16 @@ def _one(G_nom, W, builder, h, seedseq, t, opts):
     return abscissa, Y
 
 
-# The job (models, builder) reaches forked workers through this module global, so neither python-control
-# objects (whose StateSpace holds unpicklable lambdas) nor the user's builder need to be picklable; only
-# the seeds go through the pipe.
-_JOB = None
-
-
-def _chunk(seeds):
-    G_nom, W, builder, h, t, opts = _JOB
+def _chunk(task):
+    """One task of samples: the job (models pickle through :mod:`rotorlab.lti`) and its seeds."""
+    G_nom, W, builder, h, t, opts, seeds = task
     return [_one(G_nom, W, builder, h, s, t, opts) for s in seeds]
 
 
 def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, seed=None, n_jobs: int = 1,
                t_final_s: float = 3.0, n_steps: int = 600, w_band=(0.1, 100.0), static_fraction: float = 0.2,
-               progress: bool = True, marginal_tol: float = MARGINAL_TOL) -> MonteCarloResult:
+               progress: bool = True, marginal_tol: float = MARGINAL_TOL, mapper: Callable | None = None
+               ) -> MonteCarloResult:
     """Monte Carlo of ``n`` uncertain plants ``G_nom + W_delta Delta``, ``||Delta||_inf = h``.
 
     Parameters
@@ -283,14 +278,17 @@ def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, see
     closed_loop_builder : callable ``G -> StateSpace`` returning the closed loop around plant ``G`` with
         inputs ``(r, d)`` (set-point, load disturbance at the plant input) and outputs ``(y, [u])``, e.g.
         ``functools.partial(single_loop, C=C)`` (pass ``C`` as a StateSpace: converting a transfer
-        function on every sample is slow). Workers are forked, so it need not be picklable.
+        function on every sample is slow). Picklable when the samples run in other processes.
     h : peak gain of Delta (e.g. :func:`rotorlab.tune.robust.h_lim`).
     n : number of samples. seed : int or ``numpy.random.SeedSequence`` (one child per sample).
-    n_jobs : worker processes (``concurrent.futures``); ``-1`` = all cores. Results do not depend on it.
+    n_jobs : worker processes of a local pool when no ``mapper`` is given (with one: the number of workers
+        it has, which sizes the tasks); ``-1`` = all cores. Results do not depend on it.
     t_final_s, n_steps : simulation horizon; discrete plants use their own sample time (n_steps ignored).
     w_band, static_fraction : passed to :func:`random_delta`.
     progress : show a tqdm bar.
     marginal_tol : a closed-loop spectral abscissa within this of zero marks the sample marginal.
+    mapper : callable ``(fn, tasks) -> list``, optional: ordered map that runs the tasks, e.g.
+        :meth:`rotorlab.executor.Executor.map` of a Dask executor. The results do not depend on it.
     """
     if n < 1 or int(n) != n:
         raise DataError(f"n must be a positive whole number of samples; got {n}")
@@ -310,29 +308,14 @@ def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, see
     children = ss.spawn(int(n))
 
     n_jobs = os.cpu_count() if n_jobs in (-1, None) else max(int(n_jobs), 1)
-    results = []
-    bar = tqdm(total=int(n), disable=not progress, desc="montecarlo")
-    if n_jobs == 1:
-        for s in children:
-            results.append(_one(G_nom, W, closed_loop_builder, h, s, t, opts))
-            bar.update(1)
+    size = max(1, min(50, int(n) // (4 * n_jobs) or 1))
+    tasks = [(G_nom, W, closed_loop_builder, h, t, opts, children[i:i + size]) for i in range(0, int(n), size)]
+    if mapper is None:
+        with LocalExecutor(n_jobs) as ex:
+            parts = ex.map(_chunk, tasks, desc="montecarlo", progress=progress)
     else:
-        if "fork" not in multiprocessing.get_all_start_methods():
-            raise DataError("n_jobs > 1 needs the 'fork' start method (Linux, macOS); use n_jobs=1 here")
-        global _JOB
-        _JOB = (G_nom, W, closed_loop_builder, h, t, opts)
-        size = max(1, min(50, int(n) // (4 * n_jobs) or 1))
-        chunks = [children[i:i + size] for i in range(0, int(n), size)]
-        try:
-            with cf.ProcessPoolExecutor(max_workers=n_jobs, mp_context=multiprocessing.get_context("fork")) as ex:
-                futs = [ex.submit(_chunk, c) for c in chunks]
-                for f in futs:  # in submission order, so the sample order is fixed
-                    part = f.result()
-                    results.extend(part)
-                    bar.update(len(part))
-        finally:
-            _JOB = None
-    bar.close()
+        parts = mapper(_chunk, tasks)
+    results = [r for part in parts for r in part]  # in task order, so the sample order is fixed
 
     nom = _simulate(lti.as_ss(closed_loop_builder(G_nom)), t)
     abscissa = np.array([r[0] for r in results])

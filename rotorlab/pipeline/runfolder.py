@@ -15,20 +15,19 @@ their own, so the layout is written down once (here).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 from tqdm import tqdm
 
-from rotorlab import atomic
-from rotorlab.logformat import encode_metadata
 from rotorlab.gains import GainSet, load_gains
 from rotorlab.ident.model import IdentifiedModel
 from rotorlab.ident.modelio import load_model
+from rotorlab.logformat import read_parquet, write_parquet
 from rotorlab.pipeline.models import load_identified, load_plant
 from rotorlab.pipeline.settings import PipelineError, PipelineOptions
 from rotorlab.tune.cascade import PlantModel
@@ -67,21 +66,18 @@ def read_manifest(out) -> dict | None:
 
 
 def write_log(path: Path, columns: dict, units: dict, meta: dict) -> None:
-    """One run's columns as a Parquet log (atomic)."""
-    tbl = pa.table({k: np.asarray(v, float) for k, v in columns.items()})
-    tbl = tbl.replace_schema_metadata(encode_metadata(units, meta))  # the one log format (rotorlab.logformat)
-    with atomic.atomic_path(path) as tmp:
-        pq.write_table(tbl, tmp)
+    """One run's columns as a Parquet log in the rotorlab format (:func:`rotorlab.logformat.write_parquet`)."""
+    write_parquet(path, {k: np.asarray(v, float) for k, v in columns.items()}, units, meta)
 
 
 def read_log(path: Path) -> dict[str, np.ndarray]:
-    """Columns of a Parquet log by name; a missing or damaged file is a PipelineError naming it."""
+    """Columns of a Parquet log by name (units and run information: :func:`rotorlab.logformat.read_parquet`); a
+    missing or damaged file is a PipelineError naming it."""
     try:
-        tbl = pq.read_table(path)
+        return read_parquet(path)[0]
     except (OSError, pa.ArrowException) as exc:  # ArrowInvalid for a truncated file
         raise PipelineError(f"{path}: not a readable Parquet log ({exc}); run the pipeline again into this folder "
                             "to recompute the stage that wrote it") from None
-    return {k: tbl.column(k).to_numpy() for k in tbl.column_names}
 
 
 def jsonable(obj):
@@ -215,6 +211,13 @@ class StageContext:
 
     def progress(self, it, desc: str, total=None):
         return tqdm(it, desc=f"  {desc}", total=total, disable=not self.opts.progress, leave=False)
+
+    def mapper(self, desc: str, progress: bool | None = None) -> Callable:
+        """The run's executor as the ordered ``(fn, tasks) -> list`` the libraries take (``mapper=``), so
+        every parallel step (bootstrap replications, Monte Carlo samples, tuning starts) runs where the
+        campaign runs: local processes or the Dask cluster."""
+        return functools.partial(self.executor.map, desc=desc,
+                                 progress=self.opts.progress if progress is None else progress)
 
 
 @dataclasses.dataclass(frozen=True)

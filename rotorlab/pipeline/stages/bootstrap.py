@@ -43,7 +43,7 @@ def run(ctx: StageContext) -> dict:
     st = ident["models"]["pbsid"]["settings"]
     log = ctx.run.experiment_log("id")
     br = bootstrap(log["u_lon"], log["q"], _identify(st), n_boot=ctx.settings["n_boot"], seed=ctx.seed,
-                   n_jobs=ctx.executor.workers, progress=ctx.opts.progress)
+                   n_jobs=ctx.executor.workers, mapper=ctx.mapper("bootstrap"))
     w = bode_grid(N_BODE)
     W = fit_wdelta(br.nominal.sys, [m.sys for m in br.models], w, order=W_DELTA_ORDER)
     save_model(ctx.work / "w_delta.json", W, input=["delta"], output=["q"])
@@ -72,7 +72,7 @@ def _flight(ctx: StageContext, w) -> dict | None:
     # an independent seed: the flight bootstrap's innovations share nothing with the test-bed's
     br = bootstrap(log["u_lon"], log["q"], _identify(st), n_boot=ctx.settings["n_boot"],
                    seed=int(np.random.SeedSequence([ctx.seed, 1]).generate_state(1)[0]), n_jobs=ctx.executor.workers,
-                   progress=ctx.opts.progress)
+                   mapper=ctx.mapper("flight bootstrap"))
     W = fit_wdelta(br.nominal.sys, [m.sys for m in br.models], w, order=W_DELTA_ORDER)
     save_model(ctx.work / "w_delta-flight.json", W, input=["delta"], output=["q"])
     Wmag = np.abs(freqresp(W, w)[:, 0, 0])

@@ -61,7 +61,7 @@ def run(ctx: StageContext) -> dict:
     if ctx.vehicle in builtin_specs():
         spec = load_spec(ctx.vehicle)
         tr = tune_cascade(spec, [nominal], sets["standard"], starts=ctx.settings["tune_starts"], seed=ctx.seed,
-                          n_jobs=ctx.executor.workers)
+                          executor=ctx.executor)
         save_gains(tr.gains, ctx.work / "tuned.toml")
         hard_failed = [r.goal for r in tr.report if r.hard and not r.passed]
         res["tuning"] = {"status": "done" if not hard_failed else "hard goals failed", "spec": spec.name,
@@ -92,7 +92,8 @@ def run(ctx: StageContext) -> dict:
             # level 1 keeps the seed it always had; every other level draws its own Deltas
             seed = np.random.SeedSequence([ctx.seed, k] if j == 0 else [ctx.seed, k, j])
             mc = montecarlo(G_mc.sys, W, builder, scale * hl.h_lim, n=ctx.settings["n_mc"], seed=seed,
-                            n_jobs=ctx.executor.workers, t_final_s=STEP_T_FINAL_S, progress=False)
+                            n_jobs=ctx.executor.workers, mapper=ctx.mapper("montecarlo", progress=False),
+                            t_final_s=STEP_T_FINAL_S)
             levels[f"{scale:g}"] = _mc_entry(mc, scale, hl.h_lim)
             if j == 0:
                 mc_arrays[f"{name}__setpoint"] = mc.band("setpoint", MC_QUANTILES)
