@@ -9,13 +9,15 @@ import numpy as np
 from rotorlab.errors import DataError
 
 from .metrics import simulate, vaf
-from .subspace import moesp, pbsid
+from .methods import METHODS
 
-__all__ = ["select_order"]
+__all__ = ["select_order", "SUBSPACE_METHODS"]
+
+SUBSPACE_METHODS = ("pi-moesp", "pbsid")  # the methods whose order and horizons select_order searches
 
 
-def select_order(u_id, y_id, u_cv, y_cv, method: str = "moesp", orders=range(1, 7), horizons=(10, 20, 40),
-                 delay: int = 0, dt: float = 1.0, progress: bool = False, accept=None, **kwargs):
+def select_order(u_id, y_id, u_cv, y_cv, method: str = "pi-moesp", orders=range(1, 7), horizons=(10, 20, 40),
+                 delay: int = 0, dt: float = 1.0, progress: bool = False, accept=None):
     """Grid search of model order and horizon by VAF on a cross-validation record.
 
     Parameters
@@ -24,12 +26,13 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "moesp", orders=range(1, 
         Identification record.
     u_cv, y_cv : array_like
         Cross-validation record (not used to fit; its initial state is estimated).
-    method : {"moesp", "pbsid"}
+    method : {"pi-moesp", "pbsid"}
+        A subspace method of :data:`rotorlab.ident.methods.METHODS`.
     orders : iterable of int
     horizons : iterable
-        MOESP: block rows ``s``. PBSID: ``(past, future)`` pairs, or ints meaning ``past = future``.
-    delay, dt, kwargs
-        Passed to the identification function.
+        PI-MOESP: block rows ``s``. PBSID: ``(past, future)`` pairs, or ints meaning ``past = future``.
+    delay, dt
+        Passed to the identification function (samples, s).
     accept : callable, optional
         ``accept(model) -> bool``: models it rejects are scored and listed (``accepted: False``) but never
         chosen, e.g. models without a continuous-time ZOH equivalent when the model will be analysed in
@@ -43,8 +46,9 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "moesp", orders=range(1, 
         One row per tried setting: ``settings`` and ``vaf_cv`` (percent per output, mean); settings that
         are invalid for the data (order too high for the horizon) are skipped.
     """
-    if method not in ("moesp", "pbsid"):
-        raise DataError(f"method must be 'moesp' or 'pbsid'; got {method!r}")
+    if method not in SUBSPACE_METHODS:
+        raise DataError(f"method must be one of {', '.join(SUBSPACE_METHODS)}; got {method!r}")
+    fit = METHODS[method].fit
     grid = list(product(list(orders), list(horizons)))
     if progress:
         from tqdm import tqdm
@@ -53,11 +57,11 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "moesp", orders=range(1, 
     table, best, best_vaf = [], None, -np.inf
     for n, h in grid:
         try:
-            if method == "moesp":
-                m = moesp(u_id, y_id, n, h, dt=dt, delay=delay, **kwargs)
+            if method == "pi-moesp":
+                m = fit(u_id, y_id, dt=dt, delay=delay, order=n, horizon=h)
             else:
                 past, future = (h, h) if np.isscalar(h) else h
-                m = pbsid(u_id, y_id, n, past, future, dt=dt, delay=delay, **kwargs)
+                m = fit(u_id, y_id, dt=dt, delay=delay, order=n, past=past, future=future)
         except DataError:
             continue
         v = vaf(y_cv, simulate(m, u_cv, x0="estimate", y=y_cv))

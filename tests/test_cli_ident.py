@@ -29,7 +29,7 @@ def log_path(tmp_path_factory):
     return write_log(p, {"t": dt * np.arange(N), "u_lon": u, "q": y}, units={"u_lon": "%", "q": "deg/s"})
 
 
-@pytest.mark.parametrize("method", ["pbsid", "oe"])
+@pytest.mark.parametrize("method", ["pbsid", "oe-greybox"])
 def test_ident_cli_writes_a_model_that_matches_the_truth(log_path, tmp_path, capsys, method):
     out = tmp_path / "m.json"
     extra = ["--past", "30", "--future", "10"] if method == "pbsid" else []

@@ -25,13 +25,14 @@ import time
 
 import control as ct
 import numpy as np
-
-from rotorlab import lti
-from rotorlab.errors import ConfigError
 from rotorlab.tune import cascade as cas
 from rotorlab.tune.hinfstruct import Channel, StartFailure, _Problem, closed_loop, run_starts
 
-__all__ = ["Goal", "Tracking", "CrossoverBand", "Sensitivity", "Rejection", "Effort", "Margins", "Poles",
+from rotorlab import lti
+from rotorlab.config import REQUIRED, Table, _is_number
+from rotorlab.errors import ConfigError
+
+__all__ = ["GOAL_TYPES", "Goal", "Tracking", "CrossoverBand", "Sensitivity", "Rejection", "Effort", "Margins", "Poles",
            "GoalResult", "highpass_max_gain", "evaluate", "tune_cascade", "TuneResult", "format_report"]
 
 
@@ -90,6 +91,14 @@ def _detail_grid(Gp):
 class Goal:
     hard: bool = False
     label: str = "goal"
+
+    @staticmethod
+    def from_toml(g: Table) -> Goal:
+        """One ``[[goal]]`` table (a strict :class:`rotorlab.config.Table`): the reader registered for its ``type``
+        in :data:`GOAL_TYPES` reads the keys that type accepts, the only ones it accepts."""
+        typ = g.str("type", choices=tuple(GOAL_TYPES))
+        kw = {"hard": g.bool("hard")} if "hard" in g else {}
+        return GOAL_TYPES[typ][1](g, kw)
 
     def channels(self, Gp, dt) -> list[Channel]:
         raise NotImplementedError
@@ -265,6 +274,75 @@ class Poles(Goal):
         if np.any(decay <= 0):
             v = np.inf
         return v, f"min damping {damp.min():.3f}, min decay {decay.min():.3f} 1/s"
+
+
+def _weight(g: Table, key, default):
+    """A maximum-gain profile: a positive number or a ``{kind = "highpass", order, gain_db, corner_rad_s}`` table."""
+    w = g.raw(key, default)
+    if _is_number(w):
+        return g.num(key, default, lo=0.0, lo_open=True)
+    if not isinstance(w, dict):
+        raise g.error(key, expected='a positive number or a {kind = "highpass", ...} table', got=w)
+    t = g.table(key)
+    t.str("kind", choices=("highpass",))
+    order = t.int("order", 1, lo=1, hi=8)
+    gain_db = t.num("gain_db", lo=-200.0, hi=200.0)
+    corner = t.num("corner_rad_s", lo=0.0, lo_open=True)
+    return highpass_max_gain(order, gain_db, corner)
+
+
+def _band(g: Table, key, default=REQUIRED):
+    band = g.vec(key, 2, default, lo=0.0, allow_inf=True)
+    if band[0] >= band[1] or math.isinf(band[0]):
+        raise g.error(key, expected="[low, high] in rad/s with low < high", got=list(band))
+    return band
+
+
+def _crossover(g: Table, kw):
+    lo, hi = _band(g, "band_rad_s")
+    return CrossoverBand(g.str("loop"), lo, hi, **kw)
+
+
+def _tracking(g: Table, kw):
+    return Tracking(g.str("from", "theta_ref"), g.str("to", "theta"), g.num("response_time_s", lo=0.0, lo_open=True),
+                    g.num("max_error_pct", 0.001, lo=0.0, lo_open=True, hi=100.0) / 100.0,
+                    g.num("peak_error", 1.0, lo=0.0, lo_open=True), **kw)
+
+
+def _rejection(g: Table, kw):
+    return Rejection(g.str("from"), g.str("to"), _weight(g, "weight", 1.0),
+                     band_rad_s=_band(g, "band_rad_s", (0.0, math.inf)), **kw)
+
+
+def _sensitivity(g: Table, kw):
+    return Sensitivity(g.str("point"), _weight(g, "weight", 2.0), **kw)
+
+
+def _effort(g: Table, kw):
+    return Effort(frm=g.str("from", "theta_ref"), to=g.str("to", "u_ctrl"), max_gain=_weight(g, "max_gain", 1.0), **kw)
+
+
+def _margins(g: Table, kw):
+    return Margins(g.str("point", "u"), g.num("gm_db", 6.0, lo=0.0, hi=100.0), g.num("pm_deg", 45.0, lo=0.0, hi=180.0),
+                   **kw)
+
+
+def _poles(g: Table, kw):
+    return Poles(g.num("min_damping", 0.0, lo=0.0, hi=1.0), g.num("min_decay", 0.0, lo=0.0), **kw)
+
+
+#: TOML ``type`` -> (goal class, reader of its keys from a strict Table): the registry :meth:`Goal.from_toml`
+#: dispatches on. A new goal type is one class plus one entry here.
+GOAL_TYPES = {
+    "crossover": (CrossoverBand, _crossover),
+    "tracking": (Tracking, _tracking),
+    "rejection": (Rejection, _rejection),
+    "gain": (Rejection, _rejection),
+    "sensitivity": (Sensitivity, _sensitivity),
+    "effort": (Effort, _effort),
+    "margins": (Margins, _margins),
+    "poles": (Poles, _poles),
+}
 
 
 @dataclasses.dataclass

@@ -11,7 +11,8 @@
     loop = "theta"
     band_rad_s = [3.5, 14.0]
 
-Goal types: ``crossover`` (loop, band_rad_s), ``tracking`` (from, to, response_time_s, max_error_pct,
+Goal types (the registry :data:`rotorlab.tune.goals.GOAL_TYPES` that :meth:`~rotorlab.tune.goals.Goal.from_toml`
+dispatches on): ``crossover`` (loop, band_rad_s), ``tracking`` (from, to, response_time_s, max_error_pct,
 peak_error), ``rejection`` / ``gain`` (from, to, weight), ``sensitivity`` (point, weight), ``effort``
 (from, to, max_gain), ``margins`` (point, gm_db, pm_deg), ``poles`` (min_damping, min_decay). Each goal takes an
 optional ``hard = true/false``. A weight is a maximum-gain profile: a number, or
@@ -22,13 +23,13 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import math
 from pathlib import Path
 
-from rotorlab.config import REQUIRED, Table, _is_number, read_toml
-from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.tune import cascade as cas
 from rotorlab.tune import goals as G
+
+from rotorlab.config import Table, read_toml
+from rotorlab.errors import ConfigError, UnknownNameError
 
 __all__ = ["Spec", "load_spec", "parse_spec", "builtin_specs", "SPEC_DIR"]
 
@@ -47,57 +48,6 @@ class Spec:
 
 def builtin_specs() -> dict:
     return {p.stem: p for p in sorted(SPEC_DIR.glob("*.toml"))}
-
-
-def _weight(g: Table, key, default):
-    """A maximum-gain profile: a positive number or a ``{kind = "highpass", order, gain_db, corner_rad_s}`` table."""
-    w = g.raw(key, default)
-    if _is_number(w):
-        return g.num(key, default, lo=0.0, lo_open=True)
-    if not isinstance(w, dict):
-        raise g.error(key, expected='a positive number or a {kind = "highpass", ...} table', got=w)
-    t = g.table(key)
-    t.str("kind", choices=("highpass",))
-    order = t.int("order", 1, lo=1, hi=8)
-    gain_db = t.num("gain_db", lo=-200.0, hi=200.0)
-    corner = t.num("corner_rad_s", lo=0.0, lo_open=True)
-    return G.highpass_max_gain(order, gain_db, corner)
-
-
-def _band(g: Table, key, default=REQUIRED):
-    band = g.vec(key, 2, default, lo=0.0, allow_inf=True)
-    if band[0] >= band[1] or math.isinf(band[0]):
-        raise g.error(key, expected="[low, high] in rad/s with low < high", got=list(band))
-    return band
-
-
-def _goal(g: Table):
-    """One [[goal]]: the keys each goal type reads are the only ones it accepts."""
-    typ = g.str("type", choices=GOAL_TYPES)
-    kw = {"hard": g.bool("hard")} if "hard" in g else {}
-    if typ == "crossover":
-        lo, hi = _band(g, "band_rad_s")
-        return G.CrossoverBand(g.str("loop"), lo, hi, **kw)
-    if typ == "tracking":
-        return G.Tracking(g.str("from", "theta_ref"), g.str("to", "theta"),
-                          g.num("response_time_s", lo=0.0, lo_open=True),
-                          g.num("max_error_pct", 0.001, lo=0.0, lo_open=True, hi=100.0) / 100.0,
-                          g.num("peak_error", 1.0, lo=0.0, lo_open=True), **kw)
-    if typ in ("rejection", "gain"):
-        return G.Rejection(g.str("from"), g.str("to"), _weight(g, "weight", 1.0),
-                           band_rad_s=_band(g, "band_rad_s", (0.0, math.inf)), **kw)
-    if typ == "sensitivity":
-        return G.Sensitivity(g.str("point"), _weight(g, "weight", 2.0), **kw)
-    if typ == "effort":
-        return G.Effort(frm=g.str("from", "theta_ref"), to=g.str("to", "u_ctrl"),
-                        max_gain=_weight(g, "max_gain", 1.0), **kw)
-    if typ == "margins":
-        return G.Margins(g.str("point", "u"), g.num("gm_db", 6.0, lo=0.0, hi=100.0),
-                         g.num("pm_deg", 45.0, lo=0.0, hi=180.0), **kw)
-    return G.Poles(g.num("min_damping", 0.0, lo=0.0, hi=1.0), g.num("min_decay", 0.0, lo=0.0), **kw)
-
-
-GOAL_TYPES = ("crossover", "tracking", "rejection", "gain", "sensitivity", "effort", "margins", "poles")
 
 
 def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
@@ -122,7 +72,7 @@ def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
     for i, g in enumerate(goals):
         t = Table(src, g, f"goal[{i}].")
         try:
-            parsed.append(_goal(t))
+            parsed.append(G.Goal.from_toml(t))
         except UnknownNameError as exc:
             raise ConfigError(str(exc), file=src, field=f"goal[{i}]") from None
         except ConfigError as exc:

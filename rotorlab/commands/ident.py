@@ -2,9 +2,10 @@
 
 Prints the model (time base, order, delay, poles and zeros in rad/s with natural frequency and damping, DC
 gain with units) and its VAF on the identification data and, with --cv-log or --cv-split, on
-cross-validation data. Methods: moesp (PI-MOESP), pbsid (predictor-based, for closed-loop data), lms-kung
-(LMS impulse response + Kung realisation), oe (output-error grey-box fit of --structure) and hinf-match
-(H-inf matching of --structure to a PI-MOESP model). The LOG is a rotorlab Parquet log or a CSV file with a
+cross-validation data. Methods (rotorlab.ident.methods, the table the pipeline uses): pi-moesp (MOESP with
+past-input instruments), pbsid (predictor-based, for closed-loop data), lms-kung (LMS impulse response + Kung
+realisation), oe-greybox (output-error grey-box fit of --structure) and hinf-match (H-inf matching of
+--structure to a PI-MOESP model). The LOG is a rotorlab Parquet log or a CSV file with a
 header row; --column-map renames CSV columns, --resample interpolates uneven time stamps.
 """
 
@@ -12,7 +13,6 @@ from __future__ import annotations
 
 from rotorlab.cli import positive_int
 
-METHODS = ("moesp", "pbsid", "lms-kung", "oe", "hinf-match")
 STRUCTURES = ("rate-tf", "rigid-rig", "pitch")
 
 
@@ -21,18 +21,22 @@ def add_parser(sub):
 
     p = sub.add_parser("ident", help="identify a model from a log and write it as JSON", **describe(__doc__))
     p.add_argument("log", help="Parquet log (rotorlab format) or CSV with a 't' column (see --column-map)")
-    p.add_argument("--method", required=True, choices=METHODS, help="identification method")
+    # checked in run() against rotorlab.ident.methods.METHODS, the table the pipeline uses: importing it here
+    # would load the identification stack before every command
+    p.add_argument("--method", required=True,
+                   help="identification method of rotorlab.ident.methods (pi-moesp, pbsid, lms-kung, oe-greybox, "
+                        "hinf-match)")
     p.add_argument("--input", required=True, help="input column(s), comma-separated")
     p.add_argument("--output", required=True, help="output column(s), comma-separated")
     p.add_argument("--order", type=positive_int, default=4, help="model order (black-box methods)")
-    p.add_argument("--horizon", type=positive_int, default=40, help="MOESP block rows p (40 as published)")
+    p.add_argument("--horizon", type=positive_int, default=40, help="PI-MOESP block rows p (40 as published)")
     p.add_argument("--past", type=positive_int, default=11, help="PBSID past window, samples (11 as published)")
     p.add_argument("--future", type=positive_int, default=7, help="PBSID future window, samples (7 as published)")
     p.add_argument("--taps", type=positive_int, default=100, help="LMS impulse-response taps")
     p.add_argument("--delay", default="0", help="input delay in samples, or 'auto' to estimate it")
     p.add_argument("--max-delay", type=positive_int, default=20, help="largest delay tried by --delay auto, samples")
     p.add_argument("--structure", default="rate-tf", choices=STRUCTURES,
-                   help="grey-box structure for oe / hinf-match (rate-tf: K(s+z)/(s^2+as+b))")
+                   help="grey-box structure for oe-greybox / hinf-match (rate-tf: K(s+z)/(s^2+as+b))")
     p.add_argument("--column-map", action="append", default=[], metavar="OURS=FILE",
                    help="use the file's column FILE as OURS, e.g. t=time or q=pitch_rate (repeatable, or comma-separated)")
     p.add_argument("--resample", action="store_true",
@@ -68,44 +72,27 @@ def _structure(name: str):
 
 def _identify(args, u, y, dt, delay):
     """Returns an IdentifiedModel (discrete, delay in samples) and the object to save."""
-    from rotorlab.ident import subspace
+    from rotorlab.ident.methods import METHODS
     from rotorlab.ident.model import IdentifiedModel
     from rotorlab.lti import c2d_zoh
 
-    m = args.method
-    if m == "moesp":
-        model = subspace.moesp(u, y, args.order, args.horizon, dt=dt, delay=delay, instruments="u")
+    method = METHODS[args.method]
+    flags = {"order": args.order, "horizon": args.horizon, "past": args.past, "future": args.future,
+             "taps": args.taps}
+    if not method.greybox:
+        model = method.fit(u, y, dt=dt, delay=delay, **{k: flags[k] for k in method.settings})
         return model, model
-    if m == "pbsid":
-        model = subspace.pbsid(u, y, args.order, args.past, args.future, dt=dt, delay=delay)
-        return model, model
-    if m == "lms-kung":
-        from rotorlab.ident.lms import kung, lms_batch
-
-        h, _ = lms_batch(u, y, args.taps, delay=delay)
-        # LMS estimates the delay-free impulse response h[1:]; Kung wants h[0] = D = 0 first
-        import numpy as np
-
-        model = kung(np.concatenate([[0.0], h]), order=args.order, dt=dt, delay=delay)
-        return model, model
-    structure = _structure(args.structure)
-    delay_name = structure.delay
-    if m == "oe":
-        from rotorlab.ident.greybox import oe_fit
-
-        structure = structure.replace(**{delay_name: {"value": delay * dt, "fixed": True}})
-        res = oe_fit(structure, u, y, dt, estimate_x0=True)
-        print(res.summary())
-    else:
-        from rotorlab.ident.hinf_match import hinf_match
-
-        bb = subspace.moesp(u, y, args.order, args.horizon, dt=dt, delay=delay, instruments="u")
-        res = hinf_match(bb, structure, rng=0)
-        print(f"H-inf matching of '{structure.name}' to PI-MOESP n={args.order}: "
+    settings = {k: flags[k] for k in method.settings if k != "structure"}
+    res = method.fit(u, y, dt=dt, delay=delay, structure=_structure(args.structure), rng=0, **settings)
+    if args.method == "hinf-match":
+        print(f"H-inf matching of '{args.structure}' to PI-MOESP n={args.order}: "
               f"||G_W (G_ns - G_s)||_inf = {res.norm:.4g} at {res.w_peak:.3g} rad/s")
         for k, v in res.params.items():
             print(f"  {k:>10s} = {v:.6g}")
-    disc = IdentifiedModel(sys=c2d_zoh(res.sys, dt), delay=delay, method=m, settings={"structure": args.structure})
+    else:
+        print(res.summary())
+    disc = IdentifiedModel(sys=c2d_zoh(res.sys, dt), delay=delay, method=args.method,
+                           settings={"structure": args.structure})
     return disc, res
 
 
@@ -113,9 +100,10 @@ def run(args) -> int:
     import numpy as np
 
     from rotorlab.cli import CLIError
-    from rotorlab.errors import ConfigError, DataError
+    from rotorlab.errors import ConfigError, DataError, UnknownNameError
     from rotorlab.ident.logs import check_identifiable, load_log
     from rotorlab.ident.metrics import simulate, vaf
+    from rotorlab.ident.methods import get_method
     from rotorlab.ident.modelio import save_model
 
     from pathlib import Path
@@ -123,6 +111,11 @@ def run(args) -> int:
     from rotorlab.atomic import check_writable_dir
 
     check_writable_dir(Path(args.out).parent, "folder of --out")
+
+    try:
+        get_method(args.method)
+    except UnknownNameError as exc:
+        raise CLIError(f"--method: {exc}") from None
     u_cols = [c.strip() for c in args.input.split(",") if c.strip()]
     y_cols = [c.strip() for c in args.output.split(",") if c.strip()]
     cmap = parse_column_map(args.column_map)
@@ -141,7 +134,7 @@ def run(args) -> int:
             id_log, cv_log = log, None
         u, y = id_log.to_arrays(u_cols, y_cols)
         dt = id_log.dt
-        if args.method == "moesp" or args.method == "hinf-match":
+        if args.method in ("pi-moesp", "hinf-match"):
             check_identifiable(id_log, u_cols, y_cols, args.order, args.horizon)
         elif args.method == "pbsid":
             check_identifiable(id_log, u_cols, y_cols, args.order, args.past, args.future)

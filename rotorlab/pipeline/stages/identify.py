@@ -9,8 +9,9 @@ import control as ct
 import numpy as np
 
 from rotorlab.gains import load_gains
-from rotorlab.ident import (chordal_distance, estimate_delay, hinf_match, kung, lms_batch, nugap, oe_fit,
-                            oe_fit_closed_loop, pbsid, rate_tf_structure, select_order)
+from rotorlab.ident import (chordal_distance, estimate_delay, nugap, oe_fit_closed_loop, pbsid, rate_tf_structure,
+                            select_order)
+from rotorlab.ident.methods import METHODS
 from rotorlab.ident.metrics import simulate, vaf
 from rotorlab.ident.modelio import save_model
 from rotorlab.ident.structures import tuhh_axis_structure
@@ -23,7 +24,12 @@ from rotorlab.tune.cascade import tuhh_loop_controller
 from rotorlab.tune.loopshaping import tuhh_torque_gain
 from rotorlab.vehicles import gains_path, load_vehicle
 
-__all__ = ["STAGE", "CAMPAIGN_RUNS", "MAX_DELAY_SAMPLES"]
+__all__ = ["STAGE", "CAMPAIGN_RUNS", "MAX_DELAY_SAMPLES", "OPEN_LOOP_METHODS"]
+
+# the published open-loop route (ref. 000), entries of rotorlab.ident.methods.METHODS in run order (H-inf
+# matching last: it matches one of the black boxes before it); TUHH's closed-loop route fits its grey-box
+# with oe_fit_closed_loop and keeps PBSID
+OPEN_LOOP_METHODS = ("pi-moesp", "pbsid", "lms-kung", "oe-greybox", "hinf-match")
 
 CAMPAIGN_RUNS = ("id", "cv", "val", "flight")
 MAX_DELAY_SAMPLES = 8  # delay search range: 0.16 s, well above the published 0.06 s
@@ -91,13 +97,13 @@ def run(ctx: StageContext) -> dict:
         # open-loop OE) are biased by the feedback, and H-inf matching needs an unbiased black-box model
         steps = ["oe-closed-loop", "pbsid"]
         why = "skipped: open-loop method; the TUHH campaign is closed-loop (published route: closed-loop grey-box)"
-        skipped.update({k: why for k in ("pi-moesp", "lms-kung", "oe-greybox", "hinf-match")})
+        skipped.update({k: why for k in OPEN_LOOP_METHODS if k != "pbsid"})
     else:
-        steps = ["pi-moesp", "pbsid", "lms-kung", "oe-greybox", "hinf-match"]
+        steps = list(OPEN_LOOP_METHODS)
     for name in ctx.progress(steps, "identify"):
         if name == "pi-moesp":
-            m, table = select_order(u_id, y_id, u_cv, y_cv, "moesp", s["moesp_orders"], s["moesp_horizons"],
-                                    delay=d, dt=DT_S, instruments="u", accept=zoh_invertible)
+            m, table = select_order(u_id, y_id, u_cv, y_cv, "pi-moesp", s["moesp_orders"], s["moesp_horizons"],
+                                    delay=d, dt=DT_S, accept=zoh_invertible)
             record(name, m, table)
         elif name == "pbsid":
             # the nominal model is analysed in continuous time downstream (H-inf matching, the cascade's exact
@@ -106,17 +112,16 @@ def run(ctx: StageContext) -> dict:
                                     [tuple(h) for h in s["pbsid_horizons"]], delay=d, dt=DT_S, accept=zoh_invertible)
             record(name, m, table)
         elif name == "lms-kung":
-            h, _ = lms_batch(u_id, y_id, taps=s["lms_taps"], delay=d)
             best = None
             for n in s["lms_orders"]:
-                m = kung(np.concatenate([[0.0], h]), order=n, dt=DT_S, delay=d)
+                m = METHODS[name].fit(u_id, y_id, dt=DT_S, delay=d, order=n, taps=s["lms_taps"])
                 v = _vaf_of(m, u_cv, y_cv)
                 if best is None or v > best[0]:
                     best = (v, m)
             record(name, best[1])
         elif name == "oe-greybox":
-            greybox(name, oe_fit(rate_tf_structure(delay_s=d * DT_S), u_id, y_id, DT_S, estimate_x0=True,
-                                 restarts=s["oe_restarts"], rng=ctx.seed))
+            greybox(name, METHODS[name].fit(u_id, y_id, dt=DT_S, delay=d, structure=rate_tf_structure(),
+                                            restarts=s["oe_restarts"], rng=ctx.seed))
         elif name == "hinf-match":
             # The published matching converts the black box to continuous time by ZOH inversion, which a model
             # with a pole on the negative real axis does not have (subspace fits sometimes place a small spurious
@@ -126,8 +131,9 @@ def run(ctx: StageContext) -> dict:
             if source is None:
                 skipped[name] = "skipped: no black-box model has a ZOH continuous equivalent (negative real poles)"
                 continue
-            greybox(name, hinf_match(models[source], rate_tf_structure(delay_s=d * DT_S),
-                                     restarts=s["hinf_restarts"], rng=ctx.seed), black_box=source)
+            greybox(name, METHODS[name].fit(u_id, y_id, dt=DT_S, delay=d, structure=rate_tf_structure(delay_s=d * DT_S),
+                                            black_box=models[source], restarts=s["hinf_restarts"], rng=ctx.seed),
+                    black_box=source)
         elif name == "oe-closed-loop":
             # at the loop's own rate: the known controller is the flight software's cascade at the vehicle's tick
             dt_v = load_vehicle(ctx.vehicle).control_dt_s
