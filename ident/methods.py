@@ -12,8 +12,6 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
-import numpy as np
-
 from rotorlab.errors import UnknownNameError
 
 from .greybox import GreyBoxModel, GreyBoxResult, oe_fit
@@ -38,8 +36,9 @@ def fit_pbsid(u, y, *, dt: float, delay: int, order: int, past: int, future: int
 def fit_lms_kung(u, y, *, dt: float, delay: int, order: int, taps: int) -> IdentifiedModel:
     """LMS impulse response of ``taps`` taps, realised by Kung's method at ``order``."""
     h, _ = lms_batch(u, y, taps, delay=delay)
-    # LMS estimates the delay-free impulse response h[1:]; Kung wants h[0] = D = 0 first
-    return kung(np.concatenate([[0.0], h]), order=order, dt=dt, delay=delay)
+    # the LMS weights start with the direct term (w[0] = h[0] = D), the first sample Kung's method reads: no
+    # padding (a leading zero would add one sample of delay)
+    return kung(h, order=order, dt=dt, delay=delay)
 
 
 def fit_oe(u, y, *, dt: float, delay: int, structure: GreyBoxModel, restarts: int = 0, rng=None) -> GreyBoxResult:

@@ -167,7 +167,7 @@ def test_report_numbers_match_the_libraries(run):
                         seed=np.random.SeedSequence(seed), progress=False)
         got = s["montecarlo"]["tuned"]["levels"][lvl]
         assert got["fraction_unstable"] == mc.fraction_unstable and got["fraction_marginal"] == mc.fraction_marginal
-        assert got["rise_s"] == pytest.approx(list(mc.summary()["rise_s"]), rel=1e-9)
+        assert got["rise_time_s"] == pytest.approx(list(mc.summary()["rise_time_s"]), rel=1e-9)
 
 
 def test_robustness_ranks_the_gain_sets(run):

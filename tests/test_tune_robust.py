@@ -10,7 +10,8 @@ import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError
-from rotorlab.tune.montecarlo import montecarlo, random_delta, single_loop, step_stats, worst_case_delta
+from rotorlab.stepresponse import step_metrics
+from rotorlab.tune.montecarlo import montecarlo, random_delta, single_loop, worst_case_delta
 from rotorlab.tune.robust import additive_spread, control_sensitivity, fit_wdelta, h_lim, h_lim_analysis
 
 DT = 0.02
@@ -169,11 +170,11 @@ def test_random_delta_has_exact_peak_gain():
             assert lti.is_stable(d) or d.nstates == 0
 
 
-def test_step_stats_second_order():
+def test_step_metrics_second_order():
     zeta, wn = 0.5, 2.0
     t = np.linspace(0, 20, 20001)
     _, y = ct.step_response(ct.tf(wn ** 2, [1, 2 * zeta * wn, wn ** 2]), t)
-    st = step_stats(t, y)
+    st = step_metrics(t, y, 1.0)
     assert st["overshoot_pct"] == pytest.approx(100 * math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2)), abs=0.05)
 
 

@@ -9,7 +9,7 @@ from .spec import Spec, load_spec, parse_spec
 # robustness, margins and TUHH designs (margins() and montecarlo() stay in their modules, so that the
 # submodules rotorlab.tune.margins / rotorlab.tune.montecarlo are not shadowed by same-named functions)
 from .robust import HLim, additive_spread, control_sensitivity, fit_wdelta, h_lim, h_lim_analysis
-from .montecarlo import MonteCarloResult, random_delta, single_loop, step_stats, worst_case_delta
+from .montecarlo import MonteCarloResult, random_delta, single_loop, worst_case_delta
 from .margins import crossover_frequencies, disk_margin
 from .loopshaping import (MixedSensitivityWeights, glover_mcfarlane, hinf_mixed_sensitivity, modified_pid,
                           tuhh_axis_plant, tuhh_generalized_plant, tuhh_torque_gain)

@@ -24,8 +24,9 @@ import control as ct
 from rotorlab import lti
 from rotorlab.errors import DataError
 from rotorlab.executor import LocalExecutor
+from rotorlab.stepresponse import step_metrics
 
-__all__ = ["MonteCarloResult", "montecarlo", "random_delta", "step_stats", "single_loop", "worst_case_delta",
+__all__ = ["MonteCarloResult", "montecarlo", "random_delta", "single_loop", "worst_case_delta",
            "MARGINAL_TOL"]
 
 #: a closed-loop pole within this distance of the stability boundary (spectral abscissa: max Re p, or
@@ -135,26 +136,6 @@ def worst_case_delta(W_delta, V_nom, h: float) -> ct.StateSpace:
     return lti.as_ss(ap * (sign * h))
 
 
-def step_stats(t: np.ndarray, y: np.ndarray, settle_band: float = 0.02) -> dict:
-    """Rise time (10-90 % of the final value, s), settling time (into +-``settle_band`` of the final
-    value for good, s) and overshoot (% of the final value) of one step response ``y(t)``."""
-    yf = y[-1]
-    if not np.isfinite(yf) or abs(yf) < 1e-12:
-        return {"rise_s": math.nan, "settling_s": math.nan, "overshoot_pct": math.nan}
-    z = y / yf
-    i10 = np.argmax(z >= 0.1)
-    i90 = np.argmax(z >= 0.9)
-    rise = t[i90] - t[i10] if z[i90] >= 0.9 and z[i10] >= 0.1 else math.nan
-    outside = np.nonzero(np.abs(z - 1.0) > settle_band)[0]
-    if not outside.size:
-        settling = t[0]
-    elif outside[-1] + 1 < t.size:
-        settling = t[outside[-1] + 1]
-    else:  # still outside the band at the end of the horizon
-        settling = math.nan
-    return {"rise_s": float(rise), "settling_s": float(settling), "overshoot_pct": float(max(z.max() - 1.0, 0.0) * 100)}
-
-
 @dataclasses.dataclass
 class MonteCarloResult:
     """Responses and statistics of a Monte Carlo run.
@@ -171,7 +152,8 @@ class MonteCarloResult:
     marginal : bool mask (n,) of samples with a pole within ``marginal_tol`` of the boundary: neither stable
         nor unstable, reported apart and left out of the bands and statistics.
     abscissa : closed-loop spectral abscissa per sample (max Re p, or max |p| - 1 when discrete).
-    rise_s, settling_s, overshoot_pct : set-point statistics per sample (NaN where undefined/unstable).
+    rise_time_s, settling_time_s, overshoot_pct : set-point statistics per sample of
+        :func:`rotorlab.stepresponse.step_metrics` for the unit step (NaN where undefined/unstable).
     load_peak : peak ``|y|`` of the load response per sample.
     """
 
@@ -185,8 +167,8 @@ class MonteCarloResult:
     unstable: np.ndarray
     marginal: np.ndarray
     abscissa: np.ndarray
-    rise_s: np.ndarray
-    settling_s: np.ndarray
+    rise_time_s: np.ndarray
+    settling_time_s: np.ndarray
     overshoot_pct: np.ndarray
     load_peak: np.ndarray
 
@@ -218,7 +200,7 @@ class MonteCarloResult:
     def summary(self) -> dict:
         """Median and 5/95 % quantiles of the statistics (stable samples), the unstable and marginal fractions."""
         out = {"fraction_unstable": self.fraction_unstable, "fraction_marginal": self.fraction_marginal}
-        for k in ("rise_s", "settling_s", "overshoot_pct", "load_peak"):
+        for k in ("rise_time_s", "settling_time_s", "overshoot_pct", "load_peak"):
             v = getattr(self, k)
             v = v[np.isfinite(v)]
             out[k] = tuple(np.quantile(v, [0.05, 0.5, 0.95])) if v.size else (math.nan,) * 3
@@ -324,12 +306,12 @@ def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, see
     Y = np.stack([r[1] for r in results])  # (n, nt, outputs, inputs)
     Y[unstable | marginal] = np.nan
     has_u = Y.shape[2] > 1
-    stats = [step_stats(t, y) if np.all(np.isfinite(y)) else None for y in Y[:, :, 0, 0]]
+    stats = [step_metrics(t, y, 1.0) if np.all(np.isfinite(y)) else None for y in Y[:, :, 0, 0]]
     pick = lambda k: np.array([s[k] if s else math.nan for s in stats])  # noqa: E731
     return MonteCarloResult(
         t=t, setpoint=Y[:, :, 0, 0], load=Y[:, :, 0, 1],
         setpoint_u=Y[:, :, 1, 0] if has_u else None, load_u=Y[:, :, 1, 1] if has_u else None,
         nominal_setpoint=nom[:, 0, 0], nominal_load=nom[:, 0, 1], unstable=unstable, marginal=marginal, abscissa=abscissa,
-        rise_s=pick("rise_s"), settling_s=pick("settling_s"), overshoot_pct=pick("overshoot_pct"),
+        rise_time_s=pick("rise_time_s"), settling_time_s=pick("settling_time_s"), overshoot_pct=pick("overshoot_pct"),
         load_peak=np.max(np.abs(Y[:, :, 0, 1]), axis=1),
     )

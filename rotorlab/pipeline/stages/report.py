@@ -448,7 +448,7 @@ def headline_rows(s) -> tuple[list, list]:
         scale = next(w["scale"] for w in wc.values() if w)
         rows.append([f"model: worst-case all-pass Delta at {scale:g} x h_lim destabilises"] +
                     [("yes" if w["unstable"] else "**no**") if w else "-" for w in wc.values()] + ["", ""])
-    add("model: linear set-point step rise time [s]", {n: s["step"].get(n, {}).get("rise_s") for n in sets}, True)
+    add("model: linear set-point step rise time [s]", {n: s["step"].get(n, {}).get("rise_time_s") for n in sets}, True)
     if s.get("goals"):
         hard = {n: ("all met" if all(r["passed"] for r in g if r["hard"]) else
                     "fails " + ", ".join(r["goal"] for r in g if r["hard"] and not r["passed"]))
@@ -569,7 +569,7 @@ def _markdown(s: dict) -> str:
                 [[name] + [f"{_f(_mc_level(s, name, lv).get('fraction_unstable'), '{:.1%}')} / "
                            f"{_f(_mc_level(s, name, lv).get('fraction_marginal'), '{:.1%}')}" for lv in levels] +
                  [{True: "unstable", False: "**stable**", None: "-"}[m.get("worst_case", {}).get("unstable")],
-                  " / ".join(_f(x, "{:.3f}") for x in _mc_level(s, name, levels[0] if levels else "1").get("rise_s", []))]
+                  " / ".join(_f(x, "{:.3f}") for x in _mc_level(s, name, levels[0] if levels else "1").get("rise_time_s", []))]
                  for name, m in s["montecarlo"].items()])
     if pub.get("h_lim"):
         L += ["", "Published h_lim (their W_delta is not published, so only the ordering is comparable): " +
@@ -593,7 +593,7 @@ def _markdown(s: dict) -> str:
                   "and in section 5 (`design-step`, `input-disturbance`, `saturating-disturbance`).", ""]
         L += _table(["design", "rate [Hz]", "stable", "10 deg step rise [s]", "overshoot [%]", "peak deviation, 10 % input "
                      "disturbance [deg]", "peak command, 10 deg step [%]"],
-                    [[n, d[n]["rate_hz"], d[n]["stable"], _f(d[n].get("rise_s"), "{:.3f}"), _f(d[n].get("overshoot_pct"), "{:.1f}"),
+                    [[n, d[n]["rate_hz"], d[n]["stable"], _f(d[n].get("rise_time_s"), "{:.3f}"), _f(d[n].get("overshoot_pct"), "{:.1f}"),
                       _f(d[n].get("disturbance_peak_deg"), "{:.2f}"), _f(d[n].get("step_u_peak_pct"), "{:.1f}")]
                      for n in ("hinf-mixed-sensitivity", "standard")])
         L += ["", "Published (ref. 002): about 0.2 s rise on a 10 deg step; 4 deg deviation for H-inf vs 15 deg for "

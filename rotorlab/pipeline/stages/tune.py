@@ -20,7 +20,8 @@ from rotorlab.pipeline.runfolder import Stage, StageContext
 from rotorlab.pipeline.settings import DT_S
 from rotorlab.tune import evaluate, h_lim_analysis, hinf_mixed_sensitivity, load_spec, tune_cascade
 from rotorlab.tune.cascade import cascade_mc, cascade_plant, closed_cascade, control_sensitivity_cascade
-from rotorlab.tune.montecarlo import MARGINAL_TOL, montecarlo, step_stats, worst_case_delta
+from rotorlab.stepresponse import step_metrics as response_metrics
+from rotorlab.tune.montecarlo import MARGINAL_TOL, montecarlo, worst_case_delta
 from rotorlab.tune.spec import builtin_specs
 
 __all__ = ["STAGE", "step_metrics", "HINF_DT_S"]
@@ -39,12 +40,12 @@ def step_metrics(model, axis_gains, t_final_s: float = STEP_T_FINAL_S) -> dict:
     """Nominal linear set-point step of the cascade on ``model``: IAE (deg s per deg), rise, overshoot."""
     cl = closed_cascade(model, axis_gains, ("theta_ref",), ("theta",), DT_S)
     if not is_stable(cl):
-        return {"iae": math.inf, "rise_s": math.nan, "overshoot_pct": math.nan}
+        return {"iae": math.inf, "rise_time_s": math.nan, "overshoot_pct": math.nan}
     t = np.arange(0.0, t_final_s + 1e-9, DT_S)
     _, y = ct.step_response(cl, T=t)
     y = np.ravel(y)
-    st = step_stats(t, y)
-    return {"iae": float(np.sum(np.abs(1.0 - y)) * DT_S), "rise_s": st["rise_s"],
+    st = response_metrics(t, y, 1.0)
+    return {"iae": float(np.sum(np.abs(1.0 - y)) * DT_S), "rise_time_s": st["rise_time_s"],
             "overshoot_pct": st["overshoot_pct"]}
 
 
@@ -110,7 +111,7 @@ def _mc_entry(mc, scale: float, h_lim: float) -> dict:
     summ = mc.summary()
     return {"scale": scale, "h": scale * h_lim, "fraction_unstable": float(summ["fraction_unstable"]),
             "fraction_marginal": float(summ["fraction_marginal"]),
-            **{k: [float(x) for x in summ[k]] for k in ("rise_s", "settling_s", "overshoot_pct", "load_peak")}}
+            **{k: [float(x) for x in summ[k]] for k in ("rise_time_s", "settling_time_s", "overshoot_pct", "load_peak")}}
 
 
 def _worst_case(G, W, V, builder, h_lim: float) -> dict:
@@ -180,12 +181,12 @@ def _tuhh_designs(nominal, std_axis) -> dict:
         if stable:
             # 10 deg step / 10 % input disturbance
             y = {k: TUHH_STEP_DEG * np.ravel(ct.step_response(c, T=t).outputs) for k, c in ch.items()}
-            st = step_stats(t, y["r->theta"])
-            entry.update(rise_s=st["rise_s"], overshoot_pct=st["overshoot_pct"],
+            st = response_metrics(t, y["r->theta"], TUHH_STEP_DEG)
+            entry.update(rise_time_s=st["rise_time_s"], overshoot_pct=st["overshoot_pct"],
                          disturbance_peak_deg=float(np.max(np.abs(y["d->theta"]))),
                          step_u_peak_pct=float(np.max(np.abs(y["r->u"]))))
         out[name] = entry
-    out["published"] = {"rise_s": 0.2, "disturbance_peak_deg": {"hinf": 4.0, "modified-pid": 15.0}}
+    out["published"] = {"rise_time_s": 0.2, "disturbance_peak_deg": {"hinf": 4.0, "modified-pid": 15.0}}
     return out
 
 
