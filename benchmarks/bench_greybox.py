@@ -8,7 +8,7 @@ import time
 import numpy as np
 import scipy.signal as sig
 
-from rotorlab.ident.greybox import _lsim, oe_fit, oe_fit_closed_loop, simulate_greybox, simulate_closed_loop
+from rotorlab.ident.greybox import _lsim, oe_fit, oe_fit_closed_loop, simulate_closed_loop, simulate_greybox
 from rotorlab.ident.hinf_match import hinf_match
 from rotorlab.ident.structures import pitch_structure, rigid_rig_structure, tuhh_axis_structure
 from rotorlab.lti import as_ss, c2d_zoh, pid_tf

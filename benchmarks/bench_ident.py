@@ -21,12 +21,12 @@ import functools  # noqa: E402
 import time  # noqa: E402
 import timeit  # noqa: E402
 
-import numpy as np  # noqa: E402
 import control as ct  # noqa: E402
+import numpy as np  # noqa: E402
 
 from rotorlab.excitation import campaign  # noqa: E402
-from rotorlab.lti import c2d_zoh  # noqa: E402
 from rotorlab.ident import IdentifiedModel, bootstrap, moesp, nugap, pbsid  # noqa: E402
+from rotorlab.lti import c2d_zoh  # noqa: E402
 
 DT = 0.02
 TESTBED = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])

@@ -57,8 +57,8 @@ def main(duration_s: float = 10.0) -> None:
           f"free-flight {duration_s / raw['free-flight']:.1f}x real time")
     wall = {}
     for label, name, scene, opts in CASES:
-        wall[label] = _best(lambda: run_scenario(name, "anteos-p2a2", scene=scene, gains=STD, duration_s=duration_s,
-                                                 options=opts))
+        wall[label] = _best(lambda name=name, scene=scene, opts=opts: run_scenario(
+            name, "anteos-p2a2", scene=scene, gains=STD, duration_s=duration_s, options=opts))
         print(f"{label:32s} {duration_s / wall[label]:6.1f}x real time, {wall[label] / raw[scene]:5.2f}x raw mj_step")
     base_rig, base_ff = wall["setpoint (undisturbed rig)"], wall["hover, still air"]
     print(f"wind on the rig:  {100 * (wall['gust (wind, rig)'] / base_rig - 1):+.1f} % over the undisturbed run")

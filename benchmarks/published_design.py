@@ -8,8 +8,8 @@ Run: ``python benchmarks/published_design.py``.
 
 from pathlib import Path
 
-import numpy as np
 import control as ct
+import numpy as np
 
 from rotorlab.gains import load_gains
 from rotorlab.tune.cascade import N_CON, N_MEAS, cascade_plant, cascade_structure, generalised_plant, plant_model

@@ -9,9 +9,10 @@ models (000_*.txt, "Bootstrap scheme for SMI", 1000 replications).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
+import control as ct
 import numpy as np
 
 from rotorlab.errors import DataError
@@ -51,8 +52,6 @@ class BootstrapResult:
 
     def zeros(self) -> list:
         """Transmission zeros of every replica (discrete, list of arrays: counts may differ)."""
-        import control as ct
-
         return [np.asarray(ct.zeros(m.sys)) for m in self.models]
 
     def frf(self, w_rad_s) -> np.ndarray:
@@ -111,8 +110,6 @@ def _pack(m: IdentifiedModel) -> dict:
 
 
 def _unpack(d: dict) -> IdentifiedModel:
-    import control as ct
-
     return IdentifiedModel(sys=ct.ss(*d["abcd"], d["dt"]), delay=d["delay"], method=d["method"],
                            settings=d["settings"], K=d["K"], noise_cov=d["noise_cov"],
                            singular_values=d["singular_values"])

@@ -5,11 +5,12 @@ from __future__ import annotations
 from itertools import product
 
 import numpy as np
+from tqdm import tqdm
 
 from rotorlab.errors import DataError
 
-from .metrics import simulate, vaf
 from .methods import METHODS
+from .metrics import simulate, vaf
 
 __all__ = ["select_order", "SUBSPACE_METHODS"]
 
@@ -51,8 +52,6 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "pi-moesp", orders=range(
     fit = METHODS[method].fit
     grid = list(product(list(orders), list(horizons)))
     if progress:
-        from tqdm import tqdm
-
         grid = tqdm(grid, desc=f"select_order {method}")
     table, best, best_vaf = [], None, -np.inf
     for n, h in grid:

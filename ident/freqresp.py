@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import coherence, csd, welch
 
 from rotorlab.errors import DataError
 from rotorlab.lti import as_ss, is_discrete
@@ -52,8 +53,6 @@ def welch_frf(u, y, dt: float, nperseg: int = 512, coherence_threshold: float = 
     H1 is unbiased for output noise; in closed loop it is biased towards the inverse controller wherever
     the loop disturbance dominates, which low coherence flags.
     """
-    from scipy.signal import coherence, csd, welch
-
     uu, yy = _siso(u, y)
     nperseg = min(nperseg, len(uu))
     f, Puu = welch(uu, fs=1 / dt, nperseg=nperseg)

@@ -20,18 +20,20 @@ from __future__ import annotations
 import dataclasses
 import math
 import warnings
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Sequence
 
-import numpy as np
 import control as ct
+import numpy as np
 import scipy.optimize as opt
 import scipy.signal as sig
 import scipy.stats as st
+from tqdm.auto import tqdm
 
-from rotorlab.lti import as_ss, c2d_zoh_delay, is_discrete
 from rotorlab.ident._data import as_columns
 from rotorlab.ident.metrics import vaf
+from rotorlab.ident.model import IdentifiedModel
+from rotorlab.lti import as_ss, c2d_zoh_delay, is_discrete
 
 __all__ = [
     "Param",
@@ -138,7 +140,7 @@ class GreyBoxModel:
     def values(self) -> dict[str, float]:
         return {p.name: float(p.value) for p in self.params}
 
-    def replace(self, **changes) -> "GreyBoxModel":
+    def replace(self, **changes) -> GreyBoxModel:
         """Copy with parameter fields changed: ``m.replace(J=dict(value=0.02, fixed=True))`` or ``J=0.02``."""
         new = []
         for p in self.params:
@@ -154,13 +156,13 @@ class GreyBoxModel:
                            f"parameters: {self.names}")
         return GreyBoxModel(self.name, new, self.build, self.delay, self.inputs, self.outputs)
 
-    def with_values(self, values: Mapping[str, float]) -> "GreyBoxModel":
+    def with_values(self, values: Mapping[str, float]) -> GreyBoxModel:
         return self.replace(**{k: float(v) for k, v in values.items()})
 
-    def fix(self, *names: str) -> "GreyBoxModel":
+    def fix(self, *names: str) -> GreyBoxModel:
         return self.replace(**{n: {"fixed": True} for n in names})
 
-    def unfix(self, *names: str) -> "GreyBoxModel":
+    def unfix(self, *names: str) -> GreyBoxModel:
         return self.replace(**{n: {"fixed": False} for n in names})
 
     # -- models ----------------------------------------------------------------------------------
@@ -254,8 +256,6 @@ class GreyBoxResult:
     def discrete(self):
         """The fit as an ``IdentifiedModel`` at ``dt``: ZOH plant with the whole-sample part of the delay as
         ``delay`` samples; a fractional remainder stays inside ``sys`` (ZOH with input delay)."""
-        from rotorlab.ident.model import IdentifiedModel
-
         d = int(np.floor(self.delay_s / self.dt + 1e-9))
         sysd = c2d_zoh_delay(self.sys, self.dt, self.delay_s - d * self.dt)
         return IdentifiedModel(sys=sysd, delay=d, method="oe", settings={"structure": self.model.name},
@@ -473,8 +473,6 @@ def _fit(model: GreyBoxModel, y: np.ndarray, dt: float, simulate, theta0, estima
             z = x_init * np.exp(rng.uniform(-np.log(3.0), np.log(3.0), x_init.size))
             z = np.where(x_init == 0, rng.uniform(0.0, 1.0, x_init.size), z)
             starts.append(np.clip(z, lo, hi) / scale)
-    from tqdm.auto import tqdm
-
     if p > 1:
         w = 1.0 / np.maximum(y.std(axis=0), 1e-300)
     best = None

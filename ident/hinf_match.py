@@ -16,16 +16,17 @@ SLSQP (``min t  s.t.  |E(jw_i)|^2 <= t``), the grid refined at the exact peak (S
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
-import numpy as np
 import control as ct
+import numpy as np
 import scipy.optimize as opt
 import scipy.signal as sig
+from tqdm.auto import tqdm
 
-from rotorlab.lti import as_ss, d2c_zoh, freqresp, hinfnorm, is_discrete
 from rotorlab.ident.greybox import GreyBoxModel
+from rotorlab.lti import as_ss, d2c_zoh, freqresp, hinfnorm, is_discrete
 
 __all__ = ["butterworth_weight", "hinf_match", "HinfMatchResult"]
 
@@ -146,8 +147,6 @@ def hinf_match(black_box, structure: GreyBoxModel, weight=None, theta0: Mapping[
     -------
     HinfMatchResult
     """
-    from tqdm.auto import tqdm
-
     Gns, delay = _black_box_ct(black_box, delay_s)
     W = butterworth_weight() if weight is None else as_ss(weight)
     if omega is None:
@@ -217,7 +216,7 @@ def hinf_match(black_box, structure: GreyBoxModel, weight=None, theta0: Mapping[
             cons = {"type": "ineq", "fun": lambda x, g=grid: x[-1] - np.abs(err(x[:-1], g)) ** 2}
             bnds = [(a if np.isfinite(a) else None, b if np.isfinite(b) else None)
                     for a, b in zip(*bounds_z)] + [(0.0, None)]
-            res = opt.minimize(lambda x: x[-1] / t0, np.append(z, t0), method="SLSQP", constraints=[cons],
+            res = opt.minimize(lambda x, t0=t0: x[-1] / t0, np.append(z, t0), method="SLSQP", constraints=[cons],
                                bounds=bnds, options={"maxiter": 200, "ftol": 1e-12})
             znew = res.x[:-1]
             gnew, wnew = exact(znew)

@@ -6,9 +6,10 @@ response into a state-space model with Kung's algorithm (000_*.txt, "LMS"; 001_*
 
 from __future__ import annotations
 
+import control as ct
 import numpy as np
 import scipy.linalg as sla
-import control as ct
+from tqdm import tqdm
 
 from rotorlab.errors import DataError
 
@@ -111,8 +112,6 @@ def lms_batch(u, y, taps: int, mu: float = 0.5, normalized: bool = True, leakage
     y_hat = np.empty(len(uu))
     it = range(len(uu))
     if progress:
-        from tqdm import tqdm
-
         it = tqdm(it, desc="LMS")
     for k in it:
         y_hat[k] = f.update(uu[k], yy[k])

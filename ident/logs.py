@@ -6,11 +6,13 @@ Never imports MuJoCo: logs come from the simulator, a flight computer or a thrus
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
+import pyarrow.csv as pcsv
+import pyarrow.parquet as pq
 
 from rotorlab.errors import DataError
 from rotorlab.logformat import TIME_COLUMN, decode_metadata, write_parquet
@@ -84,12 +86,12 @@ class Log:
                                 "check the column name or the experiment")
         return (np.column_stack([self[c] for c in u_cols]), np.column_stack([self[c] for c in y_cols]))
 
-    def slice(self, start: int, stop: int | None = None) -> "Log":
+    def slice(self, start: int, stop: int | None = None) -> Log:
         """Rows ``start:stop`` as a new Log."""
         return Log(self.t[start:stop], {k: v[start:stop] for k, v in self.data.items()}, dict(self.units),
                    dict(self.meta), f"{self.source}[{start}:{'' if stop is None else stop}]")
 
-    def split(self, fraction: float) -> tuple["Log", "Log"]:
+    def split(self, fraction: float) -> tuple[Log, Log]:
         """First ``fraction`` of the rows and the rest (identification / cross-validation)."""
         if not 0 < fraction < 1:
             raise ValueError(f"split fraction must be in (0, 1), got {fraction}")
@@ -174,16 +176,12 @@ def load_log(path, columns: Sequence[str] | None = None, *, column_map: Mapping[
     rename = {v: k for k, v in column_map.items()}
     suffix = path.suffix.lower()
     if suffix in (".parquet", ".pq"):
-        import pyarrow.parquet as pq
-
         try:
             table = pq.read_table(path)
         except Exception as exc:  # pyarrow raises several types for a corrupt file
             raise DataError(f"{source}: not a readable Parquet file ({exc})") from exc
         file_units, meta = decode_metadata(table.schema.metadata, source)
     elif suffix == ".csv":
-        import pyarrow.csv as pcsv
-
         try:
             table = pcsv.read_csv(path)
         except Exception as exc:

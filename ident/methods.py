@@ -10,7 +10,7 @@ samples, from named settings. Black-box methods return an :class:`~rotorlab.iden
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
+from collections.abc import Callable
 
 from rotorlab.errors import UnknownNameError
 

@@ -10,8 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 import control as ct
+import numpy as np
+from scipy.signal import dlsim, lfilter, ss2tf
 
 from rotorlab.lti import as_ss, is_discrete, with_io_delay
 
@@ -130,13 +131,9 @@ def lsim_fast(A, B, C, D, u, x0=None) -> np.ndarray:
     if n == 0:
         return y
     if n > _MAX_TF_ORDER:
-        from scipy.signal import dlsim
-
         x0v = np.zeros(n) if x0 is None else np.asarray(x0, float).ravel()
         _, yd, _ = dlsim((A, B, C, D, 1.0), u, x0=x0v)
         return np.asarray(yd).reshape(N, p)
-    from scipy.signal import lfilter
-
     den, W = _adjugate_terms(A, C)
     WB = W @ B  # (n, p, m): C M_k B
     for j in range(u.shape[1]):
@@ -154,8 +151,6 @@ def free_response(A, C, x0, N: int) -> np.ndarray:
     ``C A^(k-1) (A x0)`` is that system's k-th Markov parameter, so one lfilter per output replaces the
     Python loop over time.
     """
-    from scipy.signal import lfilter, ss2tf
-
     n = A.shape[0]
     if n > _MAX_TF_ORDER:
         out = np.empty((N, C.shape[0]))
@@ -194,8 +189,6 @@ def state_regressors(A, C, u) -> np.ndarray:
     ``C (zI - A)^-1 e_i = sum_k (C M_k e_i) z^-(k+1) / den(z^-1)`` (one lfilter per input and one product,
     instead of ``n m`` state-space simulations).
     """
-    from scipy.signal import lfilter
-
     u = np.asarray(u, dtype=float).reshape(len(u), -1)
     n, p = A.shape[0], C.shape[0]
     N, m = u.shape

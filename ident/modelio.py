@@ -21,8 +21,8 @@ import json
 import math
 from pathlib import Path
 
-import numpy as np
 import control as ct
+import numpy as np
 
 from rotorlab.atomic import write_json
 from rotorlab.errors import ConfigError

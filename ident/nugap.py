@@ -13,10 +13,11 @@ imaginary axis and leaves the chordal distances unchanged point by point, so one
 
 from __future__ import annotations
 
+import control as ct
 import numpy as np
 import scipy.linalg as sla
-import control as ct
 from scipy.optimize import minimize_scalar
+from scipy.signal import ss2tf
 
 from rotorlab.lti import as_ss, hinfnorm, is_discrete
 
@@ -112,8 +113,6 @@ def _kappa(s1, s2, pts):
 
 
 def _tf(A, B, C, D):
-    from scipy.signal import ss2tf
-
     if A.shape[0] == 0:
         return np.atleast_1d(D[0, 0]), np.ones(1)
     num, den = ss2tf(A, B, C, D)

@@ -17,6 +17,8 @@ import numpy as np
 import scipy.optimize as opt
 
 from rotorlab.errors import DataError
+from rotorlab.ident.greybox import oe_fit
+from rotorlab.ident.structures import first_order_structure
 
 __all__ = [
     "CoefficientFit",
@@ -262,9 +264,6 @@ def fit_first_order_steps(command, output, dt: float, delay: bool = True, tau0_s
     The record must start at steady state: deviations from the first sample are fitted (gain and lag
     are those of the linearisation at that operating point).
     """
-    from rotorlab.ident.greybox import oe_fit
-    from rotorlab.ident.structures import first_order_structure
-
     u, y = _vec(command, "command"), _vec(output, "output")
     _same_len(("command", u), ("output", y))
     du, dy = u - u[0], y - y[0]

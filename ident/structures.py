@@ -9,10 +9,11 @@ the parameter, ``fixed=[...]`` lists the parameters known a priori).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
-import numpy as np
 import control as ct
+import numpy as np
 
 from rotorlab.ident.greybox import GreyBoxModel, Param
 
@@ -31,8 +32,6 @@ INF = math.inf
 
 
 def _apply(params: list[Param], overrides: dict, fixed) -> list[Param]:
-    import dataclasses
-
     out = []
     names = {p.name for p in params}
     unknown = (set(overrides) | set(fixed or ())) - names

@@ -8,9 +8,9 @@ non-minimum-phase zero) and put back by :meth:`IdentifiedModel.with_delay` / ``s
 
 from __future__ import annotations
 
+import control as ct
 import numpy as np
 import scipy.linalg as sla
-import control as ct
 
 from rotorlab.errors import DataError
 

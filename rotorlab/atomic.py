@@ -8,9 +8,12 @@ would make every log, report and gains file unreadable to the user's group).
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import secrets
 from pathlib import Path
+
+import numpy as np
 
 
 def _create_temp(folder: Path, name: str, suffix: str) -> Path:
@@ -76,14 +79,10 @@ def write_bytes(path, data: bytes) -> Path:
 
 
 def write_json(path, obj, **kw) -> Path:
-    import json
-
     return write_text(path, json.dumps(obj, indent=2, sort_keys=False, default=_jsonable, **kw) + "\n")
 
 
 def _jsonable(o):
-    import numpy as np
-
     if isinstance(o, np.generic):
         return o.item()
     if isinstance(o, np.ndarray):

@@ -11,7 +11,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
 import sys
+
+from rotorlab.errors import RotorlabError
 
 # command name -> module under rotorlab.commands
 COMMANDS = {
@@ -26,9 +29,6 @@ COMMANDS = {
     "bode": "bode",
     "compare": "compare",
 }
-
-
-from rotorlab.errors import RotorlabError
 
 
 class CLIError(RotorlabError):
@@ -73,8 +73,6 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
 def describe(doc: str) -> dict:
     """``description=`` and ``formatter_class=`` for a sub-command's parser from its module docstring: the whole
     text (not its first line cut mid-sentence), without reStructuredText backticks."""
-    import inspect
-
     text = inspect.cleandoc(doc)
     return {"description": text.replace("``", "").strip(), "formatter_class": HelpFormatter}
 
@@ -94,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="A virtual rotorcraft lab: MuJoCo digital twins, identification and structured H-inf tuning of\n"
                     "multirotor attitude control. rotorlab COMMAND --help describes each command.")
     sub = parser.add_subparsers(dest="command", required=True)
-    for name, mod in _available():
+    for _name, mod in _available():
         p = mod.add_parser(sub)
         p.set_defaults(_module=mod)
     return parser

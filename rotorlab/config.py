@@ -98,7 +98,7 @@ class Table:
     def raw(self, key, default=REQUIRED):
         return self._get(key, default, "a value")[0]
 
-    def table(self, key, required: bool = True, *, free: bool = False) -> "Table | None":
+    def table(self, key, required: bool = True, *, free: bool = False) -> Table | None:
         self.known.add(key)
         if key not in self.data:
             if required:

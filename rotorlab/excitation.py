@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import welch
 
 from rotorlab.errors import ConfigError
 
@@ -304,8 +305,6 @@ def spectrum_check(u, dt: float, band_rad_s=(4.0, 8.0), nperseg: int | None = No
 
     ``nperseg`` defaults to the smallest power of two giving at least 8 frequency bins across the band.
     """
-    from scipy.signal import welch
-
     u = np.asarray(u, dtype=float).ravel()
     lo, hi = band_rad_s
     if not 0 <= lo < hi:

@@ -19,9 +19,10 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing
 import os
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
+from tqdm import tqdm
 
 from rotorlab.errors import RotorlabError
 
@@ -63,8 +64,6 @@ class Executor:
 
 
 def _bar(total, desc, progress):
-    from tqdm import tqdm
-
     return tqdm(total=total, desc=desc, disable=not progress, leave=False)
 
 
@@ -109,7 +108,7 @@ class LocalExecutor(Executor):
         futs = [self._pool.submit(fn, it) for it in items]
         try:
             with _bar(len(items), desc, progress) as bar:
-                for f in cf.as_completed(futs):
+                for _ in cf.as_completed(futs):
                     bar.update(1)
         except KeyboardInterrupt:
             self._terminate()

@@ -14,8 +14,8 @@ numpy/pyarrow only, so the simulator can import it without pulling in identifica
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 import pyarrow as pa

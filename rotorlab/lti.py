@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import copyreg
 
+import control as ct
 import numpy as np
 import scipy.linalg as sla
-import control as ct
+import slycot
 
 __all__ = [
     "as_ss",
@@ -98,8 +99,6 @@ def hinfnorm(sys, tols=(1e-10, 1e-8)) -> tuple[float, float]:
     chooses the tolerances run (an optimiser's inner loop runs 1e-8 alone, at half the cost).
     Returns ``(inf, nan)`` for an unstable system, since its H-inf norm is not defined.
     """
-    import slycot
-
     sys = as_ss(sys)
     if not is_stable(sys):
         return float("inf"), float("nan")

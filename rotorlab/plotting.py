@@ -137,7 +137,7 @@ def plot_runs(runs, path, signals=None, title: str | None = None) -> Path:
     fig, axs = figure(len(panels), 1, height_in=1.2 + 2.0 * len(panels), sharex=True)
     axs = axs[:, 0]
     for i, run in enumerate(runs):
-        cols, units = run["columns"], run["units"]
+        cols = run["columns"]
         t = cols["t"]
         lab = run.get("label") or run["name"]
         for ax, panel in zip(axs, panels):

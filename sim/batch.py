@@ -36,14 +36,20 @@ from mujoco.batch import Batch, SimulationError
 
 from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet
+from rotorlab.scenes import PHYSICS_DT_S, PREFIX
 from rotorlab.sim import randomize, scenarios
 from rotorlab.sim.control.vector import VectorAttitudeController, VectorSupervisor
 from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance, total_wind_ned, toward_ned
 from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quats
 from rotorlab.sim.runner import BASE_COLUMNS, resolve_gains
-from rotorlab.sim.simulator import (DIVERGENCE_WARNINGS, Simulator, at_rig_stop, body_wind, diverged_reason,
-                                    rig_stop_reason)
-from rotorlab.scenes import PHYSICS_DT_S, PREFIX
+from rotorlab.sim.simulator import (
+    DIVERGENCE_WARNINGS,
+    Simulator,
+    at_rig_stop,
+    body_wind,
+    diverged_reason,
+    rig_stop_reason,
+)
 from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
 
 #: scenes the batched runner supports (the rigs: cascade and open-loop modes without position hold)

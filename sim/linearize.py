@@ -7,9 +7,9 @@ command map) to a named sensor channel.
 
 from __future__ import annotations
 
+import control as ct
 import mujoco
 import numpy as np
-import control as ct
 
 from rotorlab.errors import UnknownNameError
 from rotorlab.lti import c2d_zoh, d2c_zoh

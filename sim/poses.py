@@ -67,7 +67,7 @@ class PoseTrack:
                 self.tendon_path[k, i, :num] = pts[adr:adr + num]
         self.n = k + 1
 
-    def trimmed(self) -> "PoseTrack":
+    def trimmed(self) -> PoseTrack:
         """The same track with the arrays cut to the filled rows."""
         for name in ("t", "xpos", "xquat", "rotor_pos", "rotor_axis", "thrust_N", "wind", "tendon_path",
                      "tendon_wrapnum"):

@@ -8,7 +8,6 @@ import os
 import time
 from pathlib import Path
 
-
 from rotorlab import atomic
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import GainSet, load_gains
@@ -259,4 +258,5 @@ def _gain_dict(gs: GainSet | None) -> dict | None:
     return {ax: {"outer": g.outer.as_dict(), "inner": g.inner.as_dict()} for ax, g in gs.axes.items()}
 
 
-__all__ = ["RunResult", "run_scenario", "check_duration", "INTERRUPTED", "resolve_gains", "make_flight_software", "controller_plugins", "BASE_COLUMNS"]
+__all__ = ["RunResult", "run_scenario", "check_duration", "INTERRUPTED", "resolve_gains", "make_flight_software",
+           "controller_plugins", "BASE_COLUMNS"]

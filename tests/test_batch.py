@@ -16,13 +16,13 @@ import pytest
 
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import AxisGains, GainSet, LoopGains
+from rotorlab.sim import scenarios
 from rotorlab.sim.batch import run_batch
 from rotorlab.sim.control.pid import DiscretePID
 from rotorlab.sim.control.supervisor import Supervisor
 from rotorlab.sim.control.vector import VectorPID, VectorSupervisor
 from rotorlab.sim.frames import euler_deg_from_quat, euler_deg_from_quats
 from rotorlab.sim.runner import make_flight_software, resolve_gains, run_scenario
-from rotorlab.sim import scenarios
 from rotorlab.sim.simulator import Simulator
 from rotorlab.vehicles import load_vehicle
 

@@ -2,16 +2,16 @@
 
 import json
 
-import numpy as np
 import control as ct
+import numpy as np
 import pytest
 
 from rotorlab.cli import main
 from rotorlab.errors import ConfigError
 from rotorlab.ident.greybox import simulate_greybox
 from rotorlab.ident.logs import write_log
-from rotorlab.ident.modelio import load_model, save_model
 from rotorlab.ident.model import IdentifiedModel
+from rotorlab.ident.modelio import load_model, save_model
 from rotorlab.ident.structures import rate_tf_structure
 from rotorlab.lti import c2d_zoh, freqresp
 

@@ -9,9 +9,18 @@ import pytest
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import AxisGains, GainSet, LoopGains
 from rotorlab.lti import c2d_zoh, delay_ss, pid2_ss
+from rotorlab.sim.control import (
+    AttitudeController,
+    CallbackPlugin,
+    CascadeAxis,
+    FlightSoftware,
+    Mixer,
+    PositionGains,
+    StateSpacePlugin,
+    quad_plus,
+    quad_x,
+)
 from rotorlab.vehicles import load_vehicle
-from rotorlab.sim.control import (AttitudeController, CallbackPlugin, CascadeAxis, FlightSoftware, Mixer,
-                                  PositionGains, StateSpacePlugin, quad_plus, quad_x)
 
 DT = 0.02
 LIMITS = load_vehicle("anteos-p2a2").commands  # the P2-A2's [commands]: +-30 %, +-150 deg/s, yaw +-20 %, +-90 deg/s

@@ -3,9 +3,9 @@ against the cascade itself, the controller file format and its bad input."""
 
 import json
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 
 from rotorlab import lti
 from rotorlab.cli import main

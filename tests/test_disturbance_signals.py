@@ -8,8 +8,14 @@ import pytest
 from scipy import signal
 
 from rotorlab.errors import ConfigError
-from rotorlab.sim.disturbances import (DrydenTurbulence, RecirculationTorque, dryden_psd_u, dryden_psd_v,
-                                       low_altitude_scales, one_minus_cosine)
+from rotorlab.sim.disturbances import (
+    DrydenTurbulence,
+    RecirculationTorque,
+    dryden_psd_u,
+    dryden_psd_v,
+    low_altitude_scales,
+    one_minus_cosine,
+)
 
 DT = 0.02
 N = 2 ** 18  # 5243 s at 50 Hz

@@ -12,11 +12,11 @@ from rotorlab.gains import parse_gains
 from rotorlab.scenes import HOVER_HEIGHT_M
 from rotorlab.sim.disturbances import DISTURBANCES, CosineGust, Disturbance, DrydenWind, MeanWind
 from rotorlab.sim.disturbances.dryden import DrydenTurbulence
-from rotorlab.sim.disturbances.gust import one_minus_cosine
-from rotorlab.sim.disturbances.recirculation_moment import RecirculationMoment
-from rotorlab.sim.disturbances.input_disturbance_step import InputDisturbanceStep
-from rotorlab.sim.disturbances.rope_pull import RopePull
 from rotorlab.sim.disturbances.dryden_wind import turbulence_axes_ned
+from rotorlab.sim.disturbances.gust import one_minus_cosine
+from rotorlab.sim.disturbances.input_disturbance_step import InputDisturbanceStep
+from rotorlab.sim.disturbances.recirculation_moment import RecirculationMoment
+from rotorlab.sim.disturbances.rope_pull import RopePull
 from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.simulator import Simulator, _stable_hash
 

@@ -4,8 +4,19 @@ import numpy as np
 import pytest
 
 from rotorlab.errors import ConfigError
-from rotorlab.excitation import (ANTEOS_CAMPAIGN, anteos_segments, band_fraction, campaign, design_campaign, doublet,
-                                 multistep_3211, prbs, prbs_psd, spectrum_check, sweep)
+from rotorlab.excitation import (
+    ANTEOS_CAMPAIGN,
+    anteos_segments,
+    band_fraction,
+    campaign,
+    design_campaign,
+    doublet,
+    multistep_3211,
+    prbs,
+    prbs_psd,
+    spectrum_check,
+    sweep,
+)
 
 DT = 0.02
 
@@ -37,7 +48,7 @@ def test_campaign_concatenates_segments():
     assert [s[1] for s in segs] == list(ANTEOS_CAMPAIGN["amplitudes_pct"])
     u, bounds = campaign(segs, DT, seed=0)
     assert list(bounds) == [0, 1000, 2000, 3000] and len(u) == 3000
-    for (hold, amp, _), a, b in zip(segs, bounds[:-1], bounds[1:]):
+    for (_hold, amp, _), a, b in zip(segs, bounds[:-1], bounds[1:]):
         assert set(np.unique(u[a:b])) == {-amp, amp}
 
 

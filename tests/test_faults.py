@@ -256,6 +256,7 @@ def silent_server():
 
 def test_dask_address_that_is_not_a_scheduler(silent_server, tmp_path, capsys):
     import distributed  # noqa: F401 - its import (seconds on a loaded machine) is not the connect time
+
     from rotorlab.executor import ExecutorError, get_executor
 
     t0 = time.perf_counter()
@@ -406,9 +407,9 @@ def test_gym_step_after_termination_refuses():
     ({"episode_s": "long"}, "episode_s"),
 ])
 def test_gym_wrong_typed_kwargs(kwargs, field):
-    from rotorlab.sim.env_rig import RigEnv
-
     import re
+
+    from rotorlab.sim.env_rig import RigEnv
 
     with pytest.raises(ConfigError, match=rf"field '{re.escape(field)}'.*expected.*got"):
         env = RigEnv(**kwargs)

@@ -2,14 +2,14 @@
 
 import functools
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 
 from rotorlab.errors import DataError
 from rotorlab.excitation import prbs
-from rotorlab.lti import c2d_zoh
 from rotorlab.ident import IdentifiedModel, bootstrap, model_frf, moesp, pbsid
+from rotorlab.lti import c2d_zoh
 
 DT = 0.02
 TRUTH = IdentifiedModel(c2d_zoh(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]), DT), delay=3)

@@ -3,13 +3,18 @@ transfer functions, and output-error fits (open loop and indirect closed loop) r
 with honest 95 % confidence intervals."""
 
 
-import numpy as np
 import control as ct
+import numpy as np
 import pytest
 
 from rotorlab.ident.greybox import GreyBoxModel, Param, oe_fit, oe_fit_closed_loop, simulate_greybox
-from rotorlab.ident.structures import (pitch_structure, rigid_rig_structure, rigid_rig_tf_coefficients,
-                                       tuhh_axis_structure, tuhh_torque_gain)
+from rotorlab.ident.structures import (
+    pitch_structure,
+    rigid_rig_structure,
+    rigid_rig_tf_coefficients,
+    tuhh_axis_structure,
+    tuhh_torque_gain,
+)
 from rotorlab.lti import as_ss, c2d_zoh, c2d_zoh_delay, pid_tf
 
 

@@ -1,8 +1,8 @@
 """H-inf model matching: a structured model is recovered from its own black-box (ZOH, similarity-
 transformed) realisation, and the published Butterworth weight is what the papers describe."""
 
-import numpy as np
 import control as ct
+import numpy as np
 import pytest
 
 from rotorlab.ident.hinf_match import butterworth_weight, hinf_match

@@ -1,12 +1,12 @@
 """LMS impulse-response estimation and Kung's realisation against exact Markov parameters."""
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 
 from rotorlab.errors import DataError
-from rotorlab.lti import c2d_zoh
 from rotorlab.ident import LMS, IdentifiedModel, kung, lms_batch, nugap
+from rotorlab.lti import c2d_zoh
 
 DT = 0.02
 G = c2d_zoh(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]), DT)  # P2-A2 pitch, 50 Hz

@@ -2,8 +2,8 @@
 recovers the published P2-A2 test-bed model from data simulated with it (ground truth), and the CLI and
 the pipeline use exactly this table."""
 
-import numpy as np
 import control as ct
+import numpy as np
 import pytest
 
 from rotorlab.cli import main

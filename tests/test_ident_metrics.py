@@ -1,14 +1,24 @@
 """VAF, simulation with estimated initial state, order selection, non-parametric FRFs and the nu-gap."""
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 
 from rotorlab.errors import DataError
 from rotorlab.excitation import prbs
+from rotorlab.ident import (
+    IdentifiedModel,
+    chordal_distance,
+    etfe,
+    model_frf,
+    nugap,
+    select_order,
+    simulate,
+    stability_margin_bpc,
+    vaf,
+    welch_frf,
+)
 from rotorlab.lti import c2d_zoh
-from rotorlab.ident import (IdentifiedModel, chordal_distance, etfe, model_frf, nugap, select_order, simulate,
-                            stability_margin_bpc, vaf, welch_frf)
 
 DT = 0.02
 TESTBED = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])  # P2-A2 PBSID test-bed model

@@ -6,9 +6,14 @@ import numpy as np
 import pytest
 
 from rotorlab.errors import DataError
-from rotorlab.ident.rotor import (fit_first_order_steps, fit_pitch_thrust, fit_speed_map, fit_thrust_coefficient,
-                                  fit_torque_coefficient)
 from rotorlab.ident.greybox import simulate_greybox
+from rotorlab.ident.rotor import (
+    fit_first_order_steps,
+    fit_pitch_thrust,
+    fit_speed_map,
+    fit_thrust_coefficient,
+    fit_torque_coefficient,
+)
 from rotorlab.ident.structures import first_order_structure
 
 RHO, R = 1.225, 0.127

@@ -1,17 +1,16 @@
 """Subspace identification (MOESP, PBSID) against known systems: the published P2-A2 pitch model in open and
 closed loop, a random MIMO system, the exact rank structure of noise-free data, and input checking."""
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 from scipy.signal import lfilter
 
 from rotorlab.errors import DataError
 from rotorlab.excitation import campaign, prbs
-from rotorlab.lti import c2d_zoh
-from rotorlab.ident import IdentifiedModel, moesp, pbsid, nugap, vaf, estimate_delay
-from rotorlab.lti import pid_tf, with_io_delay, as_ss
+from rotorlab.ident import IdentifiedModel, estimate_delay, moesp, nugap, pbsid, vaf
 from rotorlab.ident.model import lsim_fast
+from rotorlab.lti import as_ss, c2d_zoh, pid_tf, with_io_delay
 
 DT = 0.02
 DELAY = 3
@@ -134,7 +133,7 @@ def _random_stable(n, m, p, seed, feedthrough):
     rng = np.random.default_rng(seed)
     # real and complex poles of modulus 0.5-0.9, rotated into a full A
     blocks = []
-    for k in range(n // 2):
+    for _ in range(n // 2):
         rad, ang = rng.uniform(0.5, 0.9), rng.uniform(0.2, 1.2)
         blocks.append(rad * np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]]))
     A = np.zeros((n, n))

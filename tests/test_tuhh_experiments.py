@@ -4,9 +4,9 @@ with the Riccati anti-windup compensator; the rotor-inertia yaw reaction; why th
 
 import math
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 
 from rotorlab import lti
 from rotorlab.designs import DESIGNS, design

@@ -2,9 +2,9 @@
 
 import math
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 import scipy.linalg as sla
 
 from rotorlab import lti

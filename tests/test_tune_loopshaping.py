@@ -3,16 +3,21 @@ results."""
 
 import math
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError, UnknownNameError
 from rotorlab.gains import LoopGains
 from rotorlab.tune.antiwindup import simulate_saturated_loop
-from rotorlab.tune.loopshaping import (glover_mcfarlane, hinf_mixed_sensitivity, modified_pid, tuhh_axis_plant,
-                                       tuhh_torque_gain)
+from rotorlab.tune.loopshaping import (
+    glover_mcfarlane,
+    hinf_mixed_sensitivity,
+    modified_pid,
+    tuhh_axis_plant,
+    tuhh_torque_gain,
+)
 from rotorlab.tune.simc import half_rule, simc_pid
 
 DT = 0.001

@@ -2,9 +2,9 @@
 
 import math
 
+import control as ct
 import numpy as np
 import pytest
-import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError

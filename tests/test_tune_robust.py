@@ -3,10 +3,10 @@
 import functools
 import math
 
+import control as ct
 import numpy as np
 import pytest
 import scipy.signal
-import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError

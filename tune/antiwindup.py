@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import math
 
+import control as ct
 import numpy as np
 import scipy.linalg as sla
-import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError

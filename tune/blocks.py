@@ -13,7 +13,7 @@ order, its outputs the blocks' outputs in order. Each parameter may be fixed or 
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import control as ct
 import numpy as np
@@ -69,18 +69,18 @@ class Block:
         return out
 
     # -- conveniences -------------------------------------------------------------------------------------
-    def fix(self, *names: str) -> "Block":
+    def fix(self, *names: str) -> Block:
         """Fix the named parameters at their current values (returns self for chaining)."""
         for n in names:
             self._param(n).fixed = True
         return self
 
-    def free(self, *names: str) -> "Block":
+    def free(self, *names: str) -> Block:
         for n in names:
             self._param(n).fixed = False
         return self
 
-    def bound(self, name: str, lower: float = -np.inf, upper: float = np.inf) -> "Block":
+    def bound(self, name: str, lower: float = -np.inf, upper: float = np.inf) -> Block:
         p = self._param(name)
         p.lower, p.upper = float(lower), float(upper)
         return self

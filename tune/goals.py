@@ -25,12 +25,12 @@ import time
 
 import control as ct
 import numpy as np
-from rotorlab.tune import cascade as cas
-from rotorlab.tune.hinfstruct import Channel, StartFailure, _Problem, closed_loop, run_starts
 
 from rotorlab import lti
 from rotorlab.config import REQUIRED, Table, _is_number
 from rotorlab.errors import ConfigError
+from rotorlab.tune import cascade as cas
+from rotorlab.tune.hinfstruct import Channel, StartFailure, _Problem, closed_loop, run_starts
 
 __all__ = ["GOAL_TYPES", "Goal", "Tracking", "CrossoverBand", "Sensitivity", "Rejection", "Effort", "Margins", "Poles",
            "GoalResult", "highpass_max_gain", "evaluate", "tune_cascade", "TuneResult", "format_report"]
@@ -433,7 +433,7 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
             lower[i] = max(lower[i], 0.0)
     channels, stab = [], []
     poles = None
-    for m, Gp in _models_plants(models, spec.dt):
+    for _m, Gp in _models_plants(models, spec.dt):
         stab.append((cas.generalised_plant(Gp), cas.N_MEAS, cas.N_CON))
         for g in spec.goals:
             channels += g.channels(Gp, spec.dt)

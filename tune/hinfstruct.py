@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Sequence
+from collections.abc import Sequence
 
 import control as ct
 import numpy as np
@@ -458,7 +458,7 @@ class _Problem:
         gs, dgs = [], []
         Km = self.s.matrices(theta)
         dKm = self.s.matrix_derivatives(theta, self.free) if grad else None
-        for (P, nmeas, ncon), part, dt in zip(self.stab, self._parts, self._stab_dt):
+        for _stab, part, dt in zip(self.stab, self._parts, self._stab_dt):
             Acl = _cl_A(part, *Km)
             if Acl.shape[0] == 0:
                 continue
@@ -927,7 +927,7 @@ def _fixed_modes(prob: _Problem, theta, rng, tol=1e-6):
     for structural fixed modes, an eigenvalue shared by the closed loops of three random controllers of
     widely different size. Returns a list of (eigenvalue, reason)."""
     out = []
-    for (P, _, _), part, dt in zip(prob.stab, prob._parts, prob._stab_dt):
+    for _stab, part, dt in zip(prob.stab, prob._parts, prob._stab_dt):
         A, B2, C2 = part["A"], part["B2"], part["C2"]
         n = A.shape[0]
         unstable = (lambda lam: np.abs(lam) >= 1.0) if dt else (lambda lam: lam.real >= 0.0)

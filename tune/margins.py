@@ -30,9 +30,9 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import control as ct
 import numpy as np
 import scipy.optimize as sopt
-import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError

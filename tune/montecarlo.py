@@ -14,12 +14,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from typing import Callable
+from collections.abc import Callable
 
+import control as ct
 import numpy as np
 import scipy.linalg as sla
 import scipy.signal
-import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError

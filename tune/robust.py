@@ -19,9 +19,9 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import control as ct
 import numpy as np
 import scipy.optimize as sopt
-import control as ct
 
 from rotorlab import lti
 from rotorlab.errors import DataError
@@ -282,7 +282,7 @@ class HLim:
     def note(self) -> str:
         """One sentence for reports."""
         if self.low_frequency_bound:
-            return (f"h_lim = |G(0)|/|W_delta(0)|: ||W_delta V|| peaks at DC, where V = -1/G for any controller "
+            return ("h_lim = |G(0)|/|W_delta(0)|: ||W_delta V|| peaks at DC, where V = -1/G for any controller "
                     "with integral action, so this is a controller-independent low-frequency bound")
         return f"||W_delta V|| peaks at {self.peak_rad_s:.3g} rad/s"
 

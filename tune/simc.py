@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import dataclasses
 
-import numpy as np
 import control as ct
+import numpy as np
 
 from rotorlab import lti
 from rotorlab.errors import DataError

@@ -25,11 +25,10 @@ import dataclasses
 import difflib
 from pathlib import Path
 
-from rotorlab.tune import cascade as cas
-from rotorlab.tune import goals as G
-
 from rotorlab.config import Table, read_toml
 from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.tune import cascade as cas
+from rotorlab.tune import goals as G
 
 __all__ = ["Spec", "load_spec", "parse_spec", "builtin_specs", "SPEC_DIR"]
 

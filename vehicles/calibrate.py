@@ -70,12 +70,12 @@ def closed_form(v, axis="pitch"):
 
 def calibrate(vehicle: str, axis: str = "pitch"):
     """Least-squares rotor calibration against the published test-bed model; returns the TOML values and fit."""
+    import control as ct
+
     from rotorlab import lti
     from rotorlab.sim.linearize import linearize
     from rotorlab.vehicles import load_vehicle
     from rotorlab.vehicles.rotor_theory import hover, thrust_slope_N_per_rad
-
-    import control as ct
 
     v = load_vehicle(vehicle)
     pm = v.published["testbed"]

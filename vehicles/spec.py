@@ -264,7 +264,7 @@ def _commands(c: Table) -> CommandLimits:
     return CommandLimits(**{k: c.num(k, lo=0.0, lo_open=True) for k in CommandLimits.KEYS})
 
 
-def check_delay_steps(v: "VehicleSpec", physics_dt_s: float) -> None:
+def check_delay_steps(v: VehicleSpec, physics_dt_s: float) -> None:
     """Every rotor delay must be a whole number of physics steps: MuJoCo's actuator history realises it, and a
     rounded delay would silently change the plant."""
     for d in v.rotor.delay_s:

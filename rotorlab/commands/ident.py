@@ -97,18 +97,17 @@ def _identify(args, u, y, dt, delay):
 
 
 def run(args) -> int:
+    from pathlib import Path
+
     import numpy as np
 
+    from rotorlab.atomic import check_writable_dir
     from rotorlab.cli import CLIError
     from rotorlab.errors import ConfigError, DataError, UnknownNameError
     from rotorlab.ident.logs import check_identifiable, load_log
-    from rotorlab.ident.metrics import simulate, vaf
     from rotorlab.ident.methods import get_method
+    from rotorlab.ident.metrics import simulate, vaf
     from rotorlab.ident.modelio import save_model
-
-    from pathlib import Path
-
-    from rotorlab.atomic import check_writable_dir
 
     check_writable_dir(Path(args.out).parent, "folder of --out")
 

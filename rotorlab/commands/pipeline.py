@@ -39,7 +39,6 @@ def run(args) -> int:
     from rotorlab.cli import CLIError
     from rotorlab.errors import RotorlabError
     from rotorlab.pipeline import PipelineOptions, run_pipeline
-
     from rotorlab.vehicles import VEHICLES_DIR, load_vehicle
 
     level = "tiny" if args.tiny else ("quick" if args.quick else "full")

@@ -10,11 +10,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from rotorlab.cli import seed_int
+
 #: at most this many per-step lines in the summary (the rest are in run.json)
 MAX_STEP_LINES = 16
-
-
-from rotorlab.cli import seed_int
 
 
 def add_parser(sub):

@@ -40,10 +40,9 @@ def _start_gains(start: str, spec_path):
         return load_gains(p)
 
     from rotorlab.cli import CLIError
+    from rotorlab.config import read_toml
     from rotorlab.errors import UnknownNameError
     from rotorlab.vehicles import VEHICLES_DIR
-
-    from rotorlab.config import read_toml
 
     meta = read_toml(spec_path, "spec").get("meta", {})
     vehicle = meta.get("vehicle")

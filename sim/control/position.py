@@ -66,7 +66,7 @@ class PositionGains:
 
     @classmethod
     def for_vehicle(cls, mass_kg: float, hover_collective_pct: float, thrust_exponent: float = 1.0,
-                    **overrides) -> "PositionGains":
+                    **overrides) -> PositionGains:
         """Defaults scaled to a vehicle.
 
         Bandwidths scale with Froude similarity: size ~ mass^(1/3), time ~ sqrt(size / g) ~ mass^(1/6), so
@@ -92,7 +92,7 @@ class PositionGains:
         return cls.from_dict(vals)
 
     @classmethod
-    def from_dict(cls, data: dict, src="<position gains>") -> "PositionGains":
+    def from_dict(cls, data: dict, src="<position gains>") -> PositionGains:
         """Validate a TOML table; unknown keys and non-positive values are errors naming the field."""
         known = {f.name for f in dataclasses.fields(cls)}
         for k, v in data.items():

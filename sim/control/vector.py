@@ -19,7 +19,6 @@ from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet, LoopGains
 from rotorlab.sim.control.cascade import DEFAULT_YAW_GAINS
 from rotorlab.sim.control.supervisor import Supervisor
-from rotorlab.sim.frames import RAD2DEG
 
 _FIELDS = ("kp", "ki", "kd", "tf", "b", "c")
 

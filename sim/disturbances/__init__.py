@@ -8,8 +8,13 @@ entry here (tests/test_disturbances.py walks the table).
 
 from rotorlab.sim.disturbances.base import Disturbance
 from rotorlab.sim.disturbances.cosine_gust import CosineGust
-from rotorlab.sim.disturbances.dryden import (DrydenTurbulence, dryden_psd_u, dryden_psd_v, dryden_psd_w,
-                                               low_altitude_scales)
+from rotorlab.sim.disturbances.dryden import (
+                                               DrydenTurbulence,
+                                               dryden_psd_u,
+                                               dryden_psd_v,
+                                               dryden_psd_w,
+                                               low_altitude_scales,
+)
 from rotorlab.sim.disturbances.dryden_wind import DrydenWind
 from rotorlab.sim.disturbances.gust import one_minus_cosine
 from rotorlab.sim.disturbances.input_disturbance_step import InputDisturbanceStep

@@ -16,8 +16,8 @@ from __future__ import annotations
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import GainSet, load_gains
 from rotorlab.scenes import HOVER_HEIGHT_M
-from rotorlab.sim.disturbances.mean_wind import MeanWind
 from rotorlab.sim.disturbances.dryden_wind import DrydenWind
+from rotorlab.sim.disturbances.mean_wind import MeanWind
 from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 from rotorlab.vehicles import gains_path, list_gains
 

@@ -29,8 +29,8 @@ import numpy as np
 
 from rotorlab.errors import ConfigError
 from rotorlab.scenes import HOVER_HEIGHT_M
-from rotorlab.sim.disturbances.mean_wind import MeanWind
 from rotorlab.sim.disturbances.dryden_wind import DrydenWind
+from rotorlab.sim.disturbances.mean_wind import MeanWind
 from rotorlab.sim.scenarios import Context, Setup, _metrics, merged_options
 from rotorlab.sim.scenarios.prbs import SUPERVISOR_LIMIT_DEG, _exc_logger, excitation
 

@@ -116,7 +116,7 @@ class SensorSuite:
             out[..., sl] = s.read(x)
         return out
 
-    def noise(self, rngs, bias) -> "NoiseStream":
+    def noise(self, rngs, bias) -> NoiseStream:
         """The noise stream of one simulation (one Generator, ``bias (n_noisy,)``) or of several (a list of
         Generators, ``bias (n, n_noisy)``)."""
         return NoiseStream(self.noise_std, rngs, bias)

@@ -8,10 +8,10 @@ import numpy as np
 
 from rotorlab.excitation import spectrum_check
 from rotorlab.executor import task_seeds
-from rotorlab.sim.scenarios.prbs import campaign_band
 from rotorlab.pipeline.runfolder import Stage, StageContext, read_log, write_log
 from rotorlab.pipeline.settings import DT_S
 from rotorlab.sim.runner import run_scenario
+from rotorlab.sim.scenarios.prbs import campaign_band
 from rotorlab.vehicles import load_vehicle
 
 __all__ = ["STAGE", "experiment_plan", "run_experiment", "decimation"]

@@ -9,8 +9,15 @@ import control as ct
 import numpy as np
 
 from rotorlab.gains import load_gains
-from rotorlab.ident import (chordal_distance, estimate_delay, nugap, oe_fit_closed_loop, pbsid, rate_tf_structure,
-                            select_order)
+from rotorlab.ident import (
+    chordal_distance,
+    estimate_delay,
+    nugap,
+    oe_fit_closed_loop,
+    pbsid,
+    rate_tf_structure,
+    select_order,
+)
 from rotorlab.ident.methods import METHODS
 from rotorlab.ident.metrics import simulate, vaf
 from rotorlab.ident.modelio import save_model

@@ -21,8 +21,8 @@ from scipy.signal import welch
 from rotorlab import __version__, atomic
 from rotorlab.gains import save_gains
 from rotorlab.keymetrics import flatten_metrics, fmt, key_rows
-from rotorlab.lti import d2c_zoh, freqresp
 from rotorlab.logformat import read_parquet
+from rotorlab.lti import d2c_zoh, freqresp
 from rotorlab.pipeline import tuhh_report
 from rotorlab.pipeline.runfolder import Stage, StageContext
 from rotorlab.pipeline.settings import DT_S

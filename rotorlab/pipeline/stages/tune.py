@@ -18,9 +18,9 @@ from rotorlab.lti import as_ss, is_stable, spectral_abscissa, with_io_delay
 from rotorlab.pipeline.models import gains_table, mc_plant
 from rotorlab.pipeline.runfolder import Stage, StageContext
 from rotorlab.pipeline.settings import DT_S
+from rotorlab.stepresponse import step_metrics as response_metrics
 from rotorlab.tune import evaluate, h_lim_analysis, hinf_mixed_sensitivity, load_spec, tune_cascade
 from rotorlab.tune.cascade import cascade_mc, cascade_plant, closed_cascade, control_sensitivity_cascade
-from rotorlab.stepresponse import step_metrics as response_metrics
 from rotorlab.tune.montecarlo import MARGINAL_TOL, montecarlo, worst_case_delta
 from rotorlab.tune.spec import builtin_specs
 
