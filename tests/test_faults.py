@@ -166,14 +166,14 @@ def test_model_delay_bounded(tmp_path, capsys):
 
 def test_log_metadata_not_json(tmp_path, capsys):
     log = _log(tmp_path, meta={b"units": b"{not json", b"rotorlab": b"{}"})
-    bad(capsys, "ident", log, "--method", "moesp", "--input", "u", "--output", "y", "--order", "2", "--horizon",
+    bad(capsys, "ident", log, "--method", "pi-moesp", "--input", "u", "--output", "y", "--order", "2", "--horizon",
         "5", "--out", tmp_path / "m.json", says=(str(log), "'units'", "expected a JSON object"))
 
 
 def test_truncated_log(tmp_path, capsys):
     log = _log(tmp_path)
     log.write_bytes(log.read_bytes()[:-40])
-    bad(capsys, "ident", log, "--method", "moesp", "--input", "u", "--output", "y", "--out", tmp_path / "m.json",
+    bad(capsys, "ident", log, "--method", "pi-moesp", "--input", "u", "--output", "y", "--out", tmp_path / "m.json",
         says=(str(log), "not a readable Parquet"))
 
 
@@ -304,14 +304,14 @@ def test_vehicle_delay_not_a_physics_step(tmp_path, capsys):
 def test_ident_delay_beyond_the_log(tmp_path, capsys):
     log = _log(tmp_path, n=1000)
     t0 = time.perf_counter()
-    bad(capsys, "ident", log, "--method", "moesp", "--input", "u", "--output", "y", "--delay", "900",
+    bad(capsys, "ident", log, "--method", "pi-moesp", "--input", "u", "--output", "y", "--delay", "900",
         "--out", tmp_path / "m.json", says=("--delay 900", "at most 500"))
     assert time.perf_counter() - t0 < 10
 
 
 def test_ident_log_at_1e300(tmp_path, capsys):
     log = _log(tmp_path, scale=1e300)
-    bad(capsys, "ident", log, "--method", "moesp", "--input", "u", "--output", "y", "--order", "2", "--horizon",
+    bad(capsys, "ident", log, "--method", "pi-moesp", "--input", "u", "--output", "y", "--order", "2", "--horizon",
         "10", "--out", tmp_path / "m.json", says=(str(log), "expected", "got"))
     assert not (tmp_path / "m.json").exists()
 
@@ -509,6 +509,6 @@ def _log(tmp_path, n: int = 400, scale: float = 1.0, meta=None) -> Path:
 
 def test_helpers_make_a_valid_log(tmp_path, capsys):
     """The fault tests above start from inputs that work: the log identifies, the edited files differ."""
-    rc, out, _ = cli(capsys, "ident", _log(tmp_path), "--method", "moesp", "--input", "u", "--output", "y",
+    rc, out, _ = cli(capsys, "ident", _log(tmp_path), "--method", "pi-moesp", "--input", "u", "--output", "y",
                      "--order", "1", "--horizon", "10", "--out", tmp_path / "m.json")
     assert rc == 0 and math.isfinite(json.loads((tmp_path / "m.json").read_text())["vaf"][0])

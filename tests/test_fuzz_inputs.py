@@ -186,5 +186,5 @@ def test_fuzz_logs(tmp_path, capsys, n, scale, jitter, units, cut, constant):
     if cut is not None:
         data = p.read_bytes()
         p.write_bytes(data[: int(len(data) * cut)])
-    _no_escape(capsys, ["ident", p, "--method", "moesp", "--input", "u", "--output", "y", "--order", "2",
+    _no_escape(capsys, ["ident", p, "--method", "pi-moesp", "--input", "u", "--output", "y", "--order", "2",
                         "--horizon", "5", "--out", tmp_path / "m.json"], ok=(0, 2))
