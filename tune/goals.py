@@ -120,6 +120,7 @@ class Tracking(Goal):
     dc_error: float = 1e-5
     peak_error: float = 1.0
     hard: bool = False
+    band_rad_s: tuple = (0.0, np.inf)
 
     def __post_init__(self):
         if (self.frm, self.to) != ("theta_ref", "theta"):
@@ -133,7 +134,7 @@ class Tracking(Goal):
 
     def channels(self, Gp, dt):
         return [_channel(Gp, (), "theta_ref", "e", weight=_inv(self.max_error()), hard=self.hard,
-                         name=self.label)]
+                         name=self.label, band_rad_s=tuple(self.band_rad_s))]
 
 
 @dataclasses.dataclass
@@ -306,7 +307,8 @@ def _crossover(g: Table, kw):
 def _tracking(g: Table, kw):
     return Tracking(g.str("from", "theta_ref"), g.str("to", "theta"), g.num("response_time_s", lo=0.0, lo_open=True),
                     g.num("max_error_pct", 0.001, lo=0.0, lo_open=True, hi=100.0) / 100.0,
-                    g.num("peak_error", 1.0, lo=0.0, lo_open=True), **kw)
+                    g.num("peak_error", 1.0, lo=0.0, lo_open=True),
+                    band_rad_s=_band(g, "band_rad_s", (0.0, math.inf)), **kw)
 
 
 def _rejection(g: Table, kw):

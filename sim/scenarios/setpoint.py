@@ -81,5 +81,13 @@ def metrics(log, ctx: Context, setup: Setup) -> dict:
         prev = lvl
     # the signed errors of steps of both signs cancel in a mean: the summary is the largest magnitude
     sse = [abs(m["steady_state_error"]) for m in steps if np.isfinite(m["steady_state_error"])]
-    return _metrics.clean({"axis": axis, "steps": steps, "steady_state_error_max_abs_deg": max(sse) if sse else None,
-                           "control": _metrics.control(log, cmd, lim)})
+    out = {"axis": axis, "steps": steps, "steady_state_error_max_abs_deg": max(sse) if sse else None,
+           "control": _metrics.control(log, cmd, lim)}
+    # the noise-free small step is the linear one (comparable with a linear analysis); the others saturate
+    # the command and are scored apart, so a mean never mixes the two regimes
+    small = float({**DEFAULTS, **ctx.options}["small_step_deg"] or 0.0)
+    linear = [m for m in steps if small and abs(m["to_deg"] - m["from_deg"]) <= small + 1e-9][:1]
+    if linear:
+        out["linear_step"] = linear[0]
+    out["large_steps"] = [m for m in steps if not (linear and m is linear[0])]
+    return _metrics.clean(out)
