@@ -27,6 +27,7 @@ from rotorlab.pipeline.runfolder import RunFolder, StageContext, read_manifest, 
 from rotorlab.pipeline.settings import FORMAT_VERSION, PipelineError, PipelineOptions, settings_for
 from rotorlab.pipeline.stages import REGISTRY, STAGES
 from rotorlab.vehicles import load_vehicle, vehicle_path
+from rotorlab.tune.spec import builtin_specs
 
 __all__ = ["run_pipeline", "stage_hash", "dir_hash", "run_folder_lock", "LOCK_NAME"]
 
@@ -39,9 +40,14 @@ def _sha(obj) -> str:
 
 
 def _vehicle_fingerprint(vehicle: str) -> dict:
+    """Content hashes of the vehicle's configuration: its TOML, gain sets and shipped tuning spec (the tune
+    stage's requirements), so that editing any of them re-runs what depends on it."""
     p = vehicle_path(vehicle)
-    files = [p] + sorted((p.parent / "gains").glob("*.toml"))
-    return {f.name if f == p else f"gains/{f.name}": _sha(f.read_bytes()) for f in files}
+    files = {p.name: p, **{f"gains/{f.name}": f for f in sorted((p.parent / "gains").glob("*.toml"))}}
+    spec = builtin_specs().get(vehicle)
+    if spec is not None:
+        files["spec"] = Path(spec)
+    return {k: _sha(f.read_bytes()) for k, f in files.items()}
 
 
 def dir_hash(path: Path) -> str:

@@ -26,10 +26,10 @@ _LEVELS = {
                  validation_s={}, record_runs=None, hinf_restarts=3, oe_restarts=2, greybox_periods=11,
                  greybox_restarts=1),
     # quick: half the campaign, the published best settings plus one alternative per grid, 50 bootstrap
-    # replications, 100 Monte Carlo samples, one tuning start, shorter hover
+    # replications, 100 Monte Carlo samples, four tuning starts, shorter hover
     "quick": dict(id_s=60.0, cv_s=20.0, val_s=20.0, flight_s=60.0, moesp_orders=[2, 4], moesp_horizons=[40],
                   pbsid_orders=[2, 5], pbsid_horizons=[[11, 7], [20, 10]], lms_orders=[2, 4], lms_taps=50, n_boot=50,
-                  n_mc=100, tune_starts=1, validation_s={"hover": 24.0}, record_runs=4, hinf_restarts=1,
+                  n_mc=100, tune_starts=4, validation_s={"hover": 24.0}, record_runs=4, hinf_restarts=1,
                   oe_restarts=0, greybox_periods=11, greybox_restarts=0),
     "tiny": dict(id_s=24.0, cv_s=10.0, val_s=8.0, flight_s=20.0, moesp_orders=[4], moesp_horizons=[20],
                  pbsid_orders=[2], pbsid_horizons=[[11, 7]], lms_orders=[2], lms_taps=40, n_boot=8, n_mc=20,
