@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+import control as ct
 import numpy as np
 import pytest
 
@@ -11,6 +12,7 @@ from rotorlab.gains import load_gains
 from rotorlab.tune.cascade import N_CON, N_MEAS, cascade_plant, cascade_structure, generalised_plant, plant_model
 from rotorlab.tune.goals import CrossoverBand, evaluate, objective, tune_cascade
 from rotorlab.tune.hinfstruct import closed_loop
+from rotorlab.tune.margins import crossover_frequencies
 from rotorlab.tune.spec import load_spec, parse_spec
 
 VEH = Path(__file__).resolve().parents[1] / "vehicles"
@@ -47,14 +49,45 @@ def test_loops_match_hand_built_transfer_functions():
     assert lti.is_stable(T) and abs(lti.freqresp(T, [1e-4])[0, 0, 0] - 1) < 1e-4
 
 
-def test_published_p2a2_claims_hold_with_our_goals():
+def _values(spec, gains_file, model):
+    return {r.goal: r.value for r in evaluate(spec, load_gains(gains_file), [model])}
+
+
+def test_p2a2_gust_reading_checked_against_the_published_numbers():
+    """Ref. 000's gust goal read on the controlled variable: the published optimum sits on the bound, as the
+    optimum of the problem must, and the standard gains violate it ("need improvement in gust rejection").
+    Read on the command (d_u -> u), every gain set scores about 0.03: a goal that shapes nothing."""
     spec = load_spec("anteos-p2a2")
-    std = _by_goal(evaluate(spec, load_gains(VEH / "anteos-p2a2/gains/standard.toml"), [P2_TB]))
-    opt = evaluate(spec, load_gains(VEH / "anteos-p2a2/gains/optimal-testbed.toml"), [P2_TB])
-    # the manual tuning's inner loop crosses over at ~1.3 rad/s, below the 3.5 rad/s band
-    assert not std["crossover q in [3.5, 14] rad/s"].passed
+    std = _values(spec, VEH / "anteos-p2a2/gains/standard.toml", P2_TB)
+    opt = _values(spec, VEH / "anteos-p2a2/gains/optimal-testbed.toml", P2_TB)
+    assert abs(opt["rejection d_u->theta"] - 1.0) < 0.05
+    assert std["rejection d_u->theta"] > 1.5
+    gust = next(g for g in spec.goals if g.label == "rejection d_u->theta")
+    on_u = parse_spec({"cascade": {"dt": 0.02, "tune": ["outer.kp"]},
+                       "goal": [{"type": "rejection", "from": "d_u", "to": "u",
+                                 "weight": {"kind": "highpass", "order": 1, "gain_db": 40.0, "corner_rad_s": 10.0}}]})
+    for name in ("standard", "optimal-testbed", "optimal-flight"):
+        assert _values(on_u, VEH / f"anteos-p2a2/gains/{name}.toml", P2_TB)["rejection d_u->u"] < 0.05
+    assert not gust.hard
+
+
+def test_published_optima_are_admissible_and_active_the_standard_sets_fail():
+    """Every hard goal (the paper's and our additions) admits the published optimum (value <= 1, within 0.2 %
+    where it is on the bound); the optimum is active on some goal; the standard gains fail what the paper says
+    they fail: the P2-A2 inner crossover (1.3 rad/s) and gust rejection, the A2-MINI/B tracking, gust and
+    oscillation (damping)."""
+    cases = [("anteos-p2a2", P2_TB, "optimal-testbed", ["crossover q in [3.5, 14] rad/s", "rejection d_u->theta"]),
+             ("anteos-a2minib", A2_TB, "optimal", ["tracking theta_ref->theta (0.3 s)", "rejection d_u->theta",
+                                                   "poles"])]
+    for vehicle, model, optimum, std_fails in cases:
+        spec = load_spec(vehicle)
+        res = evaluate(spec, load_gains(VEH / vehicle / "gains" / f"{optimum}.toml"), [model])
+        assert all(r.value <= 1.002 for r in res if r.hard), (vehicle, res)
+        assert max(r.value for r in res) > 0.95, vehicle
+        std = _values(spec, VEH / vehicle / "gains/standard.toml", model)
+        assert all(std[g] > 1.0 for g in std_fails), (vehicle, std)
+    std = _by_goal(evaluate(load_spec("anteos-p2a2"), load_gains(VEH / "anteos-p2a2/gains/standard.toml"), [P2_TB]))
     assert "1.3" in std["crossover q in [3.5, 14] rad/s"].detail
-    assert all(r.passed for r in opt)
 
 
 def _acceptance(spec_name, model, start, published):
@@ -67,10 +100,23 @@ def _acceptance(spec_name, model, start, published):
 
 
 def test_acceptance_p2a2_testbed_from_standard_gains():
+    """The issue's acceptance on the published test-bed model: both loops cross over in 3.5-14 rad/s, the gust
+    and tracking goals at least as good as the published optimum's, linear-step overshoot <= 10 %."""
     res, pub = _acceptance("anteos-p2a2", P2_TB, VEH / "anteos-p2a2/gains/standard.toml",
                            VEH / "anteos-p2a2/gains/optimal-testbed.toml")
     g = res.gains["pitch"]
     assert g.outer.b == 1.0 and g.inner.c == 1.0  # 1-DoF spec leaves the set-point weights alone
+    got, ref = _by_goal(res.report), _by_goal(pub)
+    for goal in ("rejection d_u->theta", "tracking theta_ref->theta (0.5 s)"):
+        assert got[goal].value <= ref[goal].value, goal
+    Gp = cascade_plant(P2_TB, 0.02)
+    K = cascade_structure(0.02, g).ss()
+    for loop in ("theta", "q"):
+        wc = crossover_frequencies(CrossoverBand(loop, 1, 2).loop_tf(Gp, K))
+        assert len(wc) and all(3.5 <= w <= 14.0 for w in wc), (loop, wc)
+    T = closed_loop(generalised_plant(Gp, inputs=("theta_ref",), outputs=("theta",)), N_MEAS, N_CON, K)
+    y = np.ravel(ct.step_response(T, np.arange(0.0, 6.0, 0.02)).outputs)
+    assert 100.0 * (np.max(y) - 1.0) <= 10.0
 
 
 def test_acceptance_a2minib_two_dof_from_standard_gains():

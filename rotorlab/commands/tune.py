@@ -25,9 +25,10 @@ def add_parser(sub):
                    help="start gains: a gains TOML file or a gain-set name of the spec's vehicle")
     p.add_argument("--out", required=True, help="gains TOML to write; when a hard goal fails nothing is written "
                                                 "there and the gains go to OUT.failed.toml, marked as failing")
-    p.add_argument("--starts", type=positive_int, default=1, help="number of starts (1: the start gains only)")
+    p.add_argument("--starts", type=positive_int, default=4,
+                   help="number of starts: the start gains, then random starts; the best is kept")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the random starts")
-    p.add_argument("--jobs", type=positive_int, default=1, help="processes for the starts")
+    p.add_argument("--jobs", type=positive_int, default=2, help="processes for the starts")
     p.add_argument("--max-iter", type=positive_int, default=40, help="outer iterations per start")
     return p
 
