@@ -92,7 +92,7 @@ def test_misspelt_gains_key(tmp_path, capsys):
 
 # -- item 6: booleans are booleans --------------------------------------------------------------------------
 def test_quoted_boolean_in_spec(tmp_path, capsys):
-    spec = edited(tmp_path, SPEC, 'type = "tracking"', 'type = "tracking"\nhard = "false"', "spec.toml")
+    spec = edited(tmp_path, SPEC, 'type = "rejection"', 'type = "rejection"\nhard = "false"', "spec.toml")
     bad(capsys, "tune", "--model", _model(tmp_path), "--spec", spec, "--out", tmp_path / "g.toml",
         says=(str(spec), ".hard'", "true or false", "'false'"))
 
@@ -127,7 +127,7 @@ def test_binary_or_non_utf8_toml(tmp_path, capsys, kind, content, says):
     ("response_time_s = 0.5", "response_time_s = 0.0", "response_time_s"),
     ("response_time_s = 0.5", "response_time_s = nan", "response_time_s"),
     ("response_time_s = 0.5", "response_time_s = -0.5", "response_time_s"),  # item 10
-    ("gain_db = -3.0", "gain_db = nan", "gain_db"),
+    ("gain_db = -7.83", "gain_db = nan", "gain_db"),
 ])
 def test_bad_spec_numbers(tmp_path, capsys, old, new, field):
     src = SPEC if old in SPEC.read_text() else SPEC.with_name("anteos-a2minib.toml")
