@@ -26,8 +26,8 @@ from rotorlab.executor import get_executor
 from rotorlab.pipeline.runfolder import RunFolder, StageContext, read_manifest, stage_dir
 from rotorlab.pipeline.settings import FORMAT_VERSION, PipelineError, PipelineOptions, settings_for
 from rotorlab.pipeline.stages import REGISTRY, STAGES
-from rotorlab.vehicles import load_vehicle, vehicle_path
 from rotorlab.tune.spec import builtin_specs
+from rotorlab.vehicles import load_vehicle, vehicle_path
 
 __all__ = ["run_pipeline", "stage_hash", "dir_hash", "run_folder_lock", "LOCK_NAME"]
 
