@@ -90,9 +90,9 @@ def test_published_optima_are_admissible_and_active_the_standard_sets_fail():
     assert "1.3" in std["crossover q in [3.5, 14] rad/s"].detail
 
 
-def _acceptance(spec_name, model, start, published):
+def _acceptance(spec_name, model, start, published, starts=1):
     spec = load_spec(spec_name)
-    res = tune_cascade(spec, [model], load_gains(start), max_iter=30)
+    res = tune_cascade(spec, [model], load_gains(start), max_iter=30 if starts == 1 else 40, starts=starts, n_jobs=2)
     pub = evaluate(spec, load_gains(published), [model])
     assert all(r.passed for r in res.report), res.report
     assert res.objective <= objective(pub) + 1e-9
@@ -120,8 +120,10 @@ def test_acceptance_p2a2_testbed_from_standard_gains():
 
 
 def test_acceptance_a2minib_two_dof_from_standard_gains():
+    # the hard response-time goal leaves the start from the standard gains infeasible for one start: the
+    # default multi-start (rotorlab tune's 4) finds the feasible optimum
     res, pub = _acceptance("anteos-a2minib", A2_TB, VEH / "anteos-a2minib/gains/standard.toml",
-                           VEH / "anteos-a2minib/gains/optimal.toml")
+                           VEH / "anteos-a2minib/gains/optimal.toml", starts=4)
     g = res.gains["pitch"]
     assert g.outer.c == 0.0 and g.inner.c == 1.0  # c flags are not optimised (as published)
     assert 0.0 <= g.inner.b <= 1.0
