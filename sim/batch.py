@@ -1,5 +1,6 @@
 """Batched closed-loop runs: many simulations of one scene model stepped in-process by ``mujoco.batch.Batch``
-under the vectorised flight software of :mod:`rotorlab.sim.control.vector`.
+under the flight software of the scalar runs flying them all at once (``FlightSoftware(..., n=n)``: one dispatch,
+the loops of :mod:`rotorlab.sim.control.vector`).
 
 One call of :func:`run_batch` runs ``n`` copies of a rig scenario (``setpoint``, ``gust``, ``rest`` on the
 ``pitch-rig`` or ``roll-rig``) that differ in seed, gains and, optionally, physical parameters. Each
@@ -11,14 +12,16 @@ simulation follows the scalar path of :func:`rotorlab.sim.runner.run_scenario` s
 * per control tick the batch takes the 20 physics steps of one control period in one call and then computes
   the position and velocity stages at the new state (``stage=mjSTAGE_VEL``), so the IMU is sampled at the
   tick as the scalar ``mj_step`` + ``mj_forward`` does;
-* the IMU is the scalar simulator's :class:`~rotorlab.sim.sensors.SensorSuite` read over the batch's rows, its
+* the IMU is the scalar simulator's :class:`~rotorlab.sim.sensors.SensorSuite` sampled over the batch's rows, its
   noise and bias from a ``numpy.random.Generator`` per simulation seeded like the scalar simulator's
   (``default_rng(seed)``: bias first, then one normal per noisy channel per noisy tick), so a batched run with
   noise is the scalar run with the same seed (the accelerometer is read but not used: the batch's forward pass
   stops at the velocity stage);
-* wind (the scenario's gust plus any per-simulation mean wind) enters as in the simulator
-  (:func:`~rotorlab.sim.simulator.body_wind`): the per-simulation ``opt.wind`` (fuselage drag) and the rotor aero
-  actuators' controls (body-axis wind); the divergence checks are the simulator's.
+* rotor commands, wind (the scenario's gust plus any per-simulation mean wind) and the stop checks go through
+  the simulator's own functions over the batch's rows (:func:`~rotorlab.sim.simulator.set_rotor_ctrl`,
+  :func:`~rotorlab.sim.simulator.set_wind`: per-simulation ``opt.wind`` and body-axis wind on the rotor aero
+  actuators; :data:`~rotorlab.sim.simulator.DIVERGENCE_WARNINGS` and
+  :class:`~rotorlab.sim.simulator.StopCheck`).
 
 Per-simulation physical variation (``vary``) uses the batch's per-simulation model fields: airframe mass and
 inertia (followed by ``set_const``) and a steady wind per simulation.
@@ -38,18 +41,10 @@ from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet
 from rotorlab.scenes import PHYSICS_DT_S, PREFIX
 from rotorlab.sim import randomize, scenarios
-from rotorlab.sim.control.vector import VectorAttitudeController, VectorSupervisor
 from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance, total_wind_ned, toward_ned
 from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quats
-from rotorlab.sim.runner import BASE_COLUMNS, resolve_gains
-from rotorlab.sim.simulator import (
-    DIVERGENCE_WARNINGS,
-    Simulator,
-    at_rig_stop,
-    body_wind,
-    diverged_reason,
-    rig_stop_reason,
-)
+from rotorlab.sim.runner import BASE_COLUMNS, make_flight_software, resolve_gains
+from rotorlab.sim.simulator import DIVERGENCE_WARNINGS, Simulator, StopCheck, diverged_reason, set_rotor_ctrl, set_wind
 from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
 
 #: scenes the batched runner supports (the rigs: cascade and open-loop modes without position hold)
@@ -57,6 +52,8 @@ SCENES = ("pitch-rig", "roll-rig")
 #: the randomisation parameters (:mod:`rotorlab.sim.randomize`) the batch's per-simulation model fields can carry
 VARY_KEYS = ("mass", "inertia", "wind")
 _NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
+#: log columns of the physics' ground truth (the others are the flight software's signals)
+_TRUTH_COLUMNS = ("phi_true", "theta_true", "p_true", "q_true", "p_dot", "q_dot")
 
 
 @dataclasses.dataclass
@@ -282,27 +279,14 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     stage_vel = int(mujoco.mjtStage.mjSTAGE_VEL)
     batch.forward(stage=stage_vel)
 
-    imu = sim.imu
-    col = {c: k for k, c in enumerate(imu.channels)}
-    thrust = np.asarray(sim.scene.thrust_actuators)
-    spinup = np.asarray(sim.scene.spinup_actuators)
-    aero = {k: np.asarray(a) for k, a in sim.scene.aero_actuators.items()}
-    qadr = [int(m.jnt_qposadr[m.joint(j).id]) for j in ("rig_bearing", "rig_mount")]
-    stop_deg = float(sim.scene.stop_deg)
-
-    # flight software
+    # the run's flight software, as run_scenario builds it, flying the n simulations at once
     dt = sim.control_dt_s
-    limits = setup.limits(v)
-    lim, ylim = limits.limit_pct, limits.yaw_limit_pct
-    att = VectorAttitudeController(gsets, n, dt, limits)
-    ol = frozenset(setup.open_loop_axes) if setup.mode == "open-loop" else frozenset()
-    sup = VectorSupervisor()
-    mx = sim.mixer
-    mrows = [tuple(float(c) for c in r) for r in mx.matrix]
-    # the hover collective of the flight software's position gains (PositionGains.for_vehicle) is the vehicle's
-    u_col_default = float(v.hover_collective_pct)
+    fs = make_flight_software(v, gsets, setup, dt, n=n)
+    stops = StopCheck(m, sim.scene)
+    thrust, spinup, aero = sim.scene.thrust_actuators, sim.scene.spinup_actuators, sim.scene.aero_actuators
 
     # IMU noise: per-simulation generators seeded as Simulator.reset seeds its own
+    imu = sim.imu
     rngs = [np.random.default_rng(int(s)) for s in seeds]
     stream = imu.noise(rngs, np.array([imu.draw_bias(g) if noise else np.zeros(imu.n_noisy) for g in rngs]))
 
@@ -317,100 +301,57 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     for dist in wind_dists:
         columns.update(dist.columns)
     tr = {c: np.full((n_ticks, n), np.nan) for c in columns}
+    fs_columns = [c for c in BASE_COLUMNS if c not in _TRUTH_COLUMNS]
     t_log = np.full(n_ticks, np.nan)
     rows = np.full(n, n_ticks)
     stopped: list = [None] * n
     active = np.ones(n, dtype=bool)
     ids = None  # all simulations while none has stopped
-    psi_latched = None
-    reference, noise_on = setup.reference, setup.noise_on
+    noise_on = setup.noise_on
 
     for k in tqdm(range(n_ticks), desc="simulating batch", unit="tick", disable=not progress, leave=False):
         i0 = int(np.argmax(active))
         t = float(time[i0])
         t_log[k] = t
-        # ---- measure (Simulator.measure)
-        meas = imu.read(sd)
-        if noise and (noise_on is None or noise_on(t)):
-            imu.add_noise(meas, stream.next())
-        p, q, r, phi, theta, psi = (meas[:, col[c]] for c in ("p", "q", "r", "phi", "theta", "psi"))
-        # ---- flight software (FlightSoftware.step, cascade / open-loop)
-        refs = reference(t) if reference is not None else {}
-        if "z_ref" in refs or "x_ref" in refs or "y_ref" in refs:
-            raise ConfigError(f"scenario '{scenario}' sets a position set-point, which the batched runner does not "
-                              "vectorise", field="reference", got=sorted(refs))
-        phi_ref = refs.get("phi_ref", 0.0)
-        theta_ref = refs.get("theta_ref", 0.0)
-        psi_ref = refs.get("psi_ref")
-        if psi_ref is None:
-            if psi_latched is None:
-                psi_latched = psi.copy()
-            psi_ref = psi_latched
-        u_col = float(refs.get("u_col", u_col_default))
-        u_lat, p_ref = att.roll.step(phi_ref, phi, p)
-        u_lon, q_ref = att.pitch.step(theta_ref, theta, q)
-        u_yaw, _ = att.yaw.step(psi_ref, psi, r)
-        if ol:
-            nan = np.full(n, math.nan)
-            if "roll" in ol:
-                u_lat, p_ref = refs.get("u_lat", 0.0) + 0.0 + sup.step(phi, p), nan
-            if "pitch" in ol:
-                u_lon, q_ref = refs.get("u_lon", 0.0) + 0.0 + sup.step(theta, q), nan
-            if "yaw" in ol:
-                u_yaw = np.full(n, refs.get("u_yaw", 0.0) + 0.0)
-        u_lat = np.clip(u_lat, -lim, lim)
-        u_lon = np.clip(u_lon, -lim, lim)
-        u_yaw = np.clip(u_yaw, -ylim, ylim)
-        u_col = min(max(u_col, mx.out_min), mx.out_max)
-        # mixer: the scalar mixer's sum in its order, then the per-rotor clip
-        rotor = np.empty((n, len(mrows)))
-        for j, (a, b_, c, e) in enumerate(mrows):
-            rotor[:, j] = u_col * a + u_lat * b_ + u_lon * c + u_yaw * e
-        np.clip(rotor, mx.out_min, mx.out_max, out=rotor)
-        ctrl[:, thrust] = v.command_to_ctrl(rotor[:, : len(thrust)])
-        if spinup.size:
-            ctrl[:, spinup] = ctrl[:, thrust]
+        # ---- the scalar loop's tick (rotorlab.sim.runner): measure, flight software, rotor commands
+        meas = imu.sample(sd, stream if noise and (noise_on is None or noise_on(t)) else None)
+        out = fs.step(t, meas)
+        set_rotor_ctrl(ctrl, out["rotor_pct"], v, thrust, spinup)
         # ---- ground truth and log
         att_true = euler_deg_from_quats(xquat[:, airframe])
         R = xmat[:, airframe].reshape(n, 3, 3)
         w_loc = np.einsum("nji,nj->ni", R, cvel[:, airframe, 0:3])
-        for name, val in (("theta", theta), ("theta_ref", theta_ref), ("q", q), ("q_ref", q_ref), ("u_lon", u_lon),
-                          ("phi", phi), ("phi_ref", phi_ref), ("p", p), ("p_ref", p_ref), ("u_lat", u_lat),
-                          ("psi", psi), ("r", r), ("u_yaw", u_yaw), ("u_col", u_col),
-                          ("phi_true", att_true[:, 0]), ("theta_true", att_true[:, 1]),
-                          ("p_true", w_loc[:, 0] * RAD2DEG), ("q_true", -w_loc[:, 1] * RAD2DEG)):
-            tr[name][k] = val
-        # ---- wind at the tick (Simulator.tick -> disturbances -> _apply_wind)
+        for name in fs_columns:
+            tr[name][k] = out[name]
+        tr["phi_true"][k], tr["theta_true"][k] = att_true[:, 0], att_true[:, 1]
+        tr["p_true"][k], tr["q_true"][k] = w_loc[:, 0] * RAD2DEG, -w_loc[:, 1] * RAD2DEG
+        # ---- wind at the tick (Simulator.tick: the disturbances' sum, then set_wind)
         if windy:
             w = total_wind_ned(wind_dists, t) * _NED_TO_ZUP + wind_sim_zup
             if wind_dists:
                 w_ned = w * _NED_TO_ZUP
                 tr["wind_u"][k], tr["wind_v"][k], tr["wind_w"][k] = w_ned.T
-            opt_wind[:] = w
-            wb = body_wind(xmat[:, airframe], w)
-            ctrl[:, aero["hx"]] = wb[:, 0:1]
-            ctrl[:, aero["hy"]] = wb[:, 1:2]
-            ctrl[:, aero["inflow"]] = wb[:, 2:3]
+            set_wind(opt_wind, ctrl, xmat[:, airframe], w, aero)
         # ---- physics: one control period, sensors at the tick
         try:
             batch.step(ids, nstep=sim.n_substeps, stage=stage_vel)
         except SimulationError as exc:
             for i in exc.ids:
                 stopped[int(i)] = f"MuJoCo error at t = {t:.3f} s: {batch.error(int(i))}"
-        # ---- checks (Simulator.check)
-        ang = np.degrees(qpos[:, qadr[0]] + qpos[:, qadr[1]])
+        # ---- checks (Simulator.check: MuJoCo's divergence warnings, then StopCheck; the rigs read qpos alone)
         bad = np.zeros(n, dtype=bool)
         for wi in DIVERGENCE_WARNINGS:
             bad |= batch.warning[:, int(wi), 0] > 0
-        hit = at_rig_stop(ang, stop_deg)
-        new = active & (bad | hit | np.array([s is not None for s in stopped]))
-        if new.any():
-            t_next = t + dt
-            for i in np.flatnonzero(new):
-                if stopped[i] is None:
-                    stopped[i] = (diverged_reason(t_next) if bad[i] else rig_stop_reason(sim.scene, ang[i], t_next))
-                rows[i] = k + 1
-            active &= ~new
+        t_next = t + dt
+        new = []
+        for i in np.flatnonzero(active):
+            if stopped[i] is None:
+                stopped[i] = diverged_reason(t_next) if bad[i] else stops.reason(qpos[i], None, None, t_next)
+            if stopped[i] is not None:
+                new.append(i)
+        if new:
+            rows[new] = k + 1
+            active[new] = False
             if not active.any():
                 break
             ids = np.flatnonzero(active)

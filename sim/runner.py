@@ -65,15 +65,16 @@ def resolve_gains(vehicle, gains) -> GainSet | None:
 
 
 def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: float | None = None,
-                         controller=None) -> FlightSoftware:
+                         controller=None, n: int | None = None) -> FlightSoftware:
     """The flight software of a run at ``dt`` (default: the vehicle's rate), with the discrete controllers
-    ``controller`` (:func:`controller_plugins`) in place of the cascade on the commands they set."""
+    ``controller`` (:func:`controller_plugins`) in place of the cascade on the commands they set; with ``n``, of
+    ``n`` simulations at once (:func:`rotorlab.sim.batch.run_batch`; ``gains`` one GainSet or n of them)."""
     dt = vehicle.control_dt_s if dt is None else dt
     pos = PositionGains.for_vehicle(vehicle.mass_kg, vehicle.hover_collective_pct, vehicle.thrust_exponent)
     fs = FlightSoftware(
         gains, vehicle_mixer(vehicle), dt=dt, mode=setup.mode, limits=setup.limits(vehicle), position_gains=pos,
         open_loop_axes=setup.open_loop_axes, schedule=setup.schedule or None, reference=setup.reference,
-        excitation=setup.excitation or None,
+        excitation=setup.excitation or None, n=n,
     )
     if controller is not None:
         fs.plugins.extend(controller_plugins(controller, fs))

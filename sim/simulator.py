@@ -72,6 +72,62 @@ def rig_stop_reason(scene, angle_deg: float, t: float) -> str:
             f"at t = {t:.3f} s")
 
 
+class StopCheck:
+    """Why a run must stop, MuJoCo's divergence warnings aside: a rig at its stop, a flip or a crash in free
+    flight. :class:`Simulator` asks every tick; :func:`rotorlab.sim.batch.run_batch` asks for each of its
+    simulations with that simulation's row of the batch's state."""
+
+    def __init__(self, model, scene):
+        self.scene = scene
+        bearing = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
+        mount = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
+        self.rig_qadr = (int(model.jnt_qposadr[bearing]), int(model.jnt_qposadr[mount])) if bearing >= 0 else None
+        self.free = scene.name == "free-flight"
+        if self.rig_qadr is not None:
+            self.stop_deg = float(scene.stop_deg)
+        self.floor_z = FLOOR_CLEARANCE_M + scene.vehicle.body_size_m[2]
+        self.cos_tilt_limit = math.cos(math.radians(FREE_FLIGHT_TILT_LIMIT_DEG))
+
+    def reason(self, qpos, xmat, xpos, t: float) -> str | None:
+        """Why to stop at time ``t`` (s), or None, from one simulation's ``qpos`` and its airframe's ``xmat``
+        (9,) and ``xpos`` (3,) (read in free flight only)."""
+        if self.rig_qadr is not None:
+            a, b = self.rig_qadr
+            ang = math.degrees(qpos[a] + qpos[b])
+            if at_rig_stop(ang, self.stop_deg):
+                return rig_stop_reason(self.scene, ang, t)
+        elif self.free:
+            # tilt from the body z axis: R[2, 2] = cos(tilt), compared as a cosine (no acos on the good path)
+            if xmat[8] < self.cos_tilt_limit:
+                tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(xmat[8])))))
+                return (f"tilt {tilt:.0f} deg beyond the divergence limit {FREE_FLIGHT_TILT_LIMIT_DEG:g} deg "
+                        f"at t = {t:.3f} s")
+            if xpos[2] < self.floor_z:
+                return f"the vehicle hit the floor at t = {t:.3f} s"
+        return None
+
+
+def set_rotor_ctrl(ctrl, rotor_pct, vehicle, thrust, spinup) -> None:
+    """Rotor commands (%) into MuJoCo's controls of the thrust actuators and their spin-up twins (same control):
+    one simulation (``ctrl (nu,)``, ``rotor_pct (n_rotors,)``) or a row per simulation (``(n, nu)``,
+    ``(n, n_rotors)``, the batched runner)."""
+    c = vehicle.command_to_ctrl(np.asarray(rotor_pct, dtype=float)[..., : len(thrust)])
+    ctrl[..., thrust] = c
+    if spinup.size:
+        ctrl[..., spinup] = c
+
+
+def set_wind(opt_wind, ctrl, xmat, wind_world, aero: dict) -> None:
+    """Wind (m/s, world, z up) into the physics: fuselage drag through ``opt.wind``, rotor inflow and H-force
+    through the controls of the rotor aero actuators ``aero`` (``Scene.aero_actuators``), which take the wind in
+    the airframe's axes (:func:`body_wind`; ``xmat`` None: a scene without an airframe takes it unrotated).
+    One simulation (``opt_wind, wind_world (3,)``, ``ctrl (nu,)``, ``xmat (9,)``) or a row per simulation."""
+    opt_wind[...] = wind_world
+    wb = wind_world if xmat is None else body_wind(xmat, wind_world)
+    for k, name in enumerate(("hx", "hy", "inflow")):
+        ctrl[..., aero[name]] = wb[..., k:k + 1]
+
+
 class Diverged(RotorlabError):
     """The run left the physically meaningful region (NaN, MuJoCo warning, rig stop, crash)."""
 
@@ -129,7 +185,7 @@ class Simulator:
         m = self.model
         self._thrust = self.scene.thrust_actuators
         self._spinup = self.scene.spinup_actuators  # same ctrl as the thrust actuators (rotor-inertia reaction)
-        self._inflow, self._hx, self._hy = (self.scene.aero_actuators[k] for k in ("inflow", "hx", "hy"))
+        self._aero = self.scene.aero_actuators
         self.mixer = vehicle_mixer(self.vehicle)
         self._limit = self.vehicle.command_limit_pct
         self._airframe = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{PREFIX}airframe")
@@ -144,10 +200,8 @@ class Simulator:
         self.imu = imu_suite(m, self.vehicle)
         self._bearing = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
         self._mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
+        self._stops = StopCheck(m, self.scene)
         self._free = self.scene.name == "free-flight"
-        if self._bearing >= 0:
-            self._rig_qadr = (int(m.jnt_qposadr[self._bearing]), int(m.jnt_qposadr[self._mount]))
-            self._stop_deg = float(self.scene.stop_deg)
         # views into MjData's buffers, made once: attribute access through the bindings costs microseconds
         d = self.data
         self._sd_v = d.sensordata
@@ -157,8 +211,6 @@ class Simulator:
         self._wind_v = self.model.opt.wind
         self._warnings = [(w, d.warning[w]) for w in DIVERGENCE_WARNINGS]
         self._gyro_scale = FLU_TO_FRD * RAD2DEG
-        self._floor_z = FLOOR_CLEARANCE_M + self.vehicle.body_size_m[2]
-        self._cos_tilt_limit = math.cos(math.radians(FREE_FLIGHT_TILT_LIMIT_DEG))
         self.wind_world = np.zeros(3)
         self.reset(seed)
 
@@ -203,20 +255,7 @@ class Simulator:
 
     def set_rotor_commands(self, rotor_pct) -> None:
         """Per-rotor commands in %, e.g. from the flight software's mixer or a thrust-stand test."""
-        rotor = np.asarray(rotor_pct, dtype=float)[: len(self._thrust)]
-        ctrl = self.vehicle.command_to_ctrl(rotor)
-        self._ctrl_v[self._thrust] = ctrl
-        if self._spinup.size:
-            self._ctrl_v[self._spinup] = ctrl
-
-    def _apply_wind(self) -> None:
-        w = self.wind_world
-        self._wind_v[:] = w
-        wbx, wby, wbz = (body_wind(self._af_xmat, w) if self._airframe >= 0 else w).tolist()
-        ctrl = self._ctrl_v
-        ctrl[self._hx] = wbx
-        ctrl[self._hy] = wby
-        ctrl[self._inflow] = wbz
+        set_rotor_ctrl(self._ctrl_v, rotor_pct, self.vehicle, self._thrust, self._spinup)
 
     # ------------------------------------------------------------------ stepping
     def tick(self) -> None:
@@ -228,7 +267,8 @@ class Simulator:
             t = self.time
             for dist in self.disturbances:
                 dist.update(self, t)
-            self._apply_wind()
+            set_wind(self._wind_v, self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.wind_world,
+                     self._aero)
         mujoco.mj_step(self.model, d, nstep=self.n_substeps)
         # mj_step leaves the sensors of the state before its last step; the IMU is sampled at the tick
         mujoco.mj_forward(self.model, d)
@@ -238,20 +278,7 @@ class Simulator:
         for w, stat in self._warnings:
             if stat.number > 0:
                 return diverged_reason(self.time, w.name)
-        if self._bearing >= 0:
-            qpos = self._qpos_v
-            ang = math.degrees(qpos[self._rig_qadr[0]] + qpos[self._rig_qadr[1]])
-            if at_rig_stop(ang, self._stop_deg):
-                return rig_stop_reason(self.scene, ang, self.time)
-        elif self._free:
-            # tilt from the body z axis: R[2, 2] = cos(tilt), compared as a cosine (no acos on the good path)
-            if self._af_xmat[8] < self._cos_tilt_limit:
-                tilt = math.degrees(math.acos(max(-1.0, min(1.0, float(self._af_xmat[8])))))
-                return (f"tilt {tilt:.0f} deg beyond the divergence limit {FREE_FLIGHT_TILT_LIMIT_DEG:g} deg "
-                        f"at t = {self.time:.3f} s")
-            if self._af_xpos[2] < self._floor_z:
-                return f"the vehicle hit the floor at t = {self.time:.3f} s"
-        return None
+        return self._stops.reason(self._qpos_v, self._af_xmat, self._af_xpos, self.data.time)
 
     # ------------------------------------------------------------------ sensing
     def measure(self) -> dict:
@@ -259,12 +286,8 @@ class Simulator:
         and bias when enabled: ``phi, theta, psi`` (deg), ``p, q, r`` (deg/s), ``ax, ay, az`` (m/s^2, body FRD),
         and for outer loops ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s, NED) from the position sensor (truth,
         noise-free)."""
-        imu = self.imu
-        vals = imu.read(self._sd_v)
-        if self.sensor_noise:
-            # one draw per tick for all noisy channels keeps the stream (and so the log) seed-determined
-            imu.add_noise(vals, self._noise.next())
-        out = dict(zip(imu.channels, vals.tolist()))
+        # one draw per tick for all noisy channels keeps the stream (and so the log) seed-determined
+        out = self.imu.sample(self._sd_v, self._noise if self.sensor_noise else None)
         if self._free:
             # the free joint's qpos/qvel are the airframe origin's world position and velocity (NED: y, z flip)
             x, y, z = self._qpos_v[0:3].tolist()

@@ -18,12 +18,13 @@ from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import AxisGains, GainSet, LoopGains
 from rotorlab.sim import scenarios
 from rotorlab.sim.batch import run_batch
+from rotorlab.sim.control.flight_software import FlightSoftware
 from rotorlab.sim.control.pid import DiscretePID
 from rotorlab.sim.control.supervisor import Supervisor
 from rotorlab.sim.control.vector import VectorPID, VectorSupervisor
 from rotorlab.sim.frames import euler_deg_from_quat, euler_deg_from_quats
 from rotorlab.sim.runner import make_flight_software, resolve_gains, run_scenario
-from rotorlab.sim.simulator import Simulator
+from rotorlab.sim.simulator import Simulator, vehicle_mixer
 from rotorlab.vehicles import load_vehicle
 
 TOL = 1e-9
@@ -75,6 +76,27 @@ def test_vector_supervisor_and_angles_equal_scalar():
     q = rng.normal(size=(200, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     np.testing.assert_allclose(euler_deg_from_quats(q), [euler_deg_from_quat(x) for x in q], rtol=0, atol=1e-12)
+
+
+def test_mixer_of_many_simulations_equals_the_scalar_mixer(vehicle):
+    mx = vehicle_mixer(vehicle)
+    rng = np.random.default_rng(3)
+    col, lat, lon, yaw = rng.uniform(-120, 120, 50), rng.normal(0, 60, 50), rng.normal(0, 60, 50), 5.0
+    many = mx.mix_many(col, lat, lon, yaw)
+    np.testing.assert_array_equal(many, [mx.mix(*args, yaw) for args in zip(col, lat, lon)])
+    assert np.any(many == mx.out_max) and np.any(many == mx.out_min)  # the clip was exercised
+
+
+def test_flight_software_of_many_simulations_names_what_it_does_not_fly(vehicle):
+    gs, mx, lim = resolve_gains(vehicle, None), vehicle_mixer(vehicle), vehicle.commands
+    with pytest.raises(ConfigError, match="mode 'position'"):
+        FlightSoftware(gs, mx, mode="position", limits=lim, n=2)
+    with pytest.raises(ConfigError, match="schedule"):
+        FlightSoftware(gs, mx, limits=lim, schedule=[(1.0, gs)], n=2)
+    fs = FlightSoftware(gs, mx, limits=lim, reference=lambda t: {"z_ref": -1.0}, n=2)
+    meas = {c: np.zeros(2) for c in ("phi", "theta", "psi", "p", "q", "r")}
+    with pytest.raises(ConfigError, match="altitude"):
+        fs.step(0.0, meas)
 
 
 # ---------------------------------------------------------------- whole runs against run_scenario

@@ -21,6 +21,14 @@ set-point is latched to the measurement at the first tick of the mode. Commands 
 ``u_lat`` (roll), ``u_lon`` (pitch), ``u_yaw``; rate set-points ``p_ref, q_ref, r_ref``; supervisor outputs
 ``sup_lat, sup_lon``; rotor commands ``rotor_pct`` (array, %).
 
+Many simulations
+----------------
+With ``n`` the same dispatch flies ``n`` simulations at once (:func:`rotorlab.sim.batch.run_batch`): every
+measurement, loop state and command is an array ``(n,)``, the loops are those of :mod:`rotorlab.sim.control.vector`
+(per-simulation gains, the scalar arithmetic in the same order) and ``rotor_pct`` is ``(n, n_rotors)``. What is
+vectorised is what the rig scenarios fly: the cascade and open-loop modes, without position or altitude hold, gain
+schedule, excitation or plug-ins (asking for them is a ConfigError).
+
 Excitation
 ----------
 ``excitation={'u_lon': array_or_callable, 'theta_ref': ...}`` is added every tick: set-point excitation to the
@@ -42,12 +50,23 @@ from rotorlab.sim.control.mixer import Mixer
 from rotorlab.sim.control.plugins import Plugin
 from rotorlab.sim.control.position import AltitudeHold, PositionGains, PositionHold
 from rotorlab.sim.control.supervisor import Supervisor
+from rotorlab.sim.control.vector import VectorAttitudeController, VectorSupervisor
 
 MODES = ("cascade", "open-loop", "position")
 SETPOINTS = ("phi_ref", "theta_ref", "psi_ref", "x_ref", "y_ref", "z_ref")
 COMMANDS = ("u_col", "u_lat", "u_lon", "u_yaw")
 AXES = ("roll", "pitch", "yaw")
 _AXIS_CMD = {"roll": "u_lat", "pitch": "u_lon", "yaw": "u_yaw"}
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    # one simulation: a Python comparison is several times cheaper than np.clip on a float
+    return hi if x > hi else (lo if x < lo else x)
+
+
+def _latch(x):
+    """A set-point latched to a measurement: a float, or a copy of the array of many simulations."""
+    return float(x) if np.ndim(x) == 0 else np.array(x, dtype=float)
 
 
 class FlightSoftware:
@@ -77,12 +96,15 @@ class FlightSoftware:
         Set-points/external commands by name, evaluated each tick over those of :meth:`set_reference`.
     excitation : dict name -> array or callable, optional
     plugins : sequence of Plugin
+    n : int, optional
+        Fly ``n`` simulations at once (module docstring, "Many simulations"); ``gains`` may then be a sequence of
+        n GainSets. None: one simulation, signals are floats.
     """
 
     def __init__(self, gains: GainSet, mixer: Mixer, dt: float = 0.02, mode: str = "cascade", *, limits,
                  position_gains: PositionGains | None = None,
                  supervisor: Supervisor | None = None, open_loop_axes=AXES, antiwindup: str | None = "clamp",
-                 schedule=None, reference=None, excitation=None, plugins=()):
+                 schedule=None, reference=None, excitation=None, plugins=(), n: int | None = None):
         if not isinstance(mixer, Mixer):
             raise ConfigError(field="mixer", expected="a rotorlab.sim.control.mixer.Mixer", got=type(mixer).__name__)
         self.dt = float(dt)
@@ -90,13 +112,27 @@ class FlightSoftware:
         self.limits = limits
         self.u_limit_pct = float(limits.limit_pct)
         self.yaw_u_limit_pct = float(limits.yaw_limit_pct)
-        self.attitude = AttitudeController(gains, dt, limits, antiwindup, schedule)
+        self.n = n
+        sup = supervisor or Supervisor()
+        if n is None:
+            self.attitude = AttitudeController(gains, dt, limits, antiwindup, schedule)
+            self.sup_roll = Supervisor(sup.limit_deg, sup.engage_frac, sup.kp, sup.kd, sup.u_limit_pct)
+            self.sup_pitch = Supervisor(sup.limit_deg, sup.engage_frac, sup.kp, sup.kd, sup.u_limit_pct)
+            self._clip, self._mix = _clip, mixer.mix
+        else:
+            unsupported = [name for name, asked in (("mode 'position'", mode == "position"), ("schedule", schedule),
+                                                    ("excitation", excitation), ("plugins", plugins),
+                                                    (f"antiwindup '{antiwindup}'", antiwindup != "clamp")) if asked]
+            if unsupported:
+                raise ConfigError("the flight software of many simulations flies the attitude cascade and the "
+                                  "open-loop supervisor only", field="n", expected="one simulation (n=None)",
+                                  got=", ".join(unsupported))
+            self.attitude = VectorAttitudeController(gains, n, dt, limits)
+            self.sup_roll = self.sup_pitch = VectorSupervisor(sup)  # stateless
+            self._clip, self._mix = np.clip, mixer.mix_many
         self.position_gains = position_gains or PositionGains()
         self.position = PositionHold(self.position_gains, dt)
         self.altitude = AltitudeHold(self.position_gains, dt)
-        sup = supervisor or Supervisor()
-        self.sup_roll = Supervisor(sup.limit_deg, sup.engage_frac, sup.kp, sup.kd, sup.u_limit_pct)
-        self.sup_pitch = Supervisor(sup.limit_deg, sup.engage_frac, sup.kp, sup.kd, sup.u_limit_pct)
         for ax in open_loop_axes:
             if ax not in AXES:
                 raise UnknownNameError("axis", ax, AXES)
@@ -169,7 +205,7 @@ class FlightSoftware:
                 if meas_value is None:
                     raise ConfigError(f"set-point '{name}' is not set and there is no measurement to latch it to",
                                       field=name[:-4], expected="a measurement in meas")
-                v = self._latched[name] = float(meas_value)
+                v = self._latched[name] = _latch(meas_value)
         return v + (self._exc(name, t) if name in self.excitation else 0.0)
 
     def _bumpless(self, meas: dict) -> None:
@@ -216,6 +252,9 @@ class FlightSoftware:
         if psi_ref is None or exc:
             psi_ref = self._setpoint("psi_ref", refs, psi, t)
         if mode == "position" or "z_ref" in refs:
+            if self.n is not None:
+                raise ConfigError("a position or altitude set-point needs the flight software of one simulation",
+                                  field="reference", expected="attitude set-points and commands", got=sorted(refs))
             z_ref = self._setpoint("z_ref", refs, meas.get("z"), t)
             u_col = self.altitude.step(-z_ref, -meas["z"], -meas["vz"], phi, theta)
             sig["z_ref"] = z_ref
@@ -264,13 +303,13 @@ class FlightSoftware:
                     sig.update(out)
             u_col, u_lat, u_lon, u_yaw = sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"]
 
-        lim, ylim, mx = self.u_limit_pct, self.yaw_u_limit_pct, self.mixer
-        u_lat = lim if u_lat > lim else (-lim if u_lat < -lim else u_lat)
-        u_lon = lim if u_lon > lim else (-lim if u_lon < -lim else u_lon)
-        u_yaw = ylim if u_yaw > ylim else (-ylim if u_yaw < -ylim else u_yaw)
-        u_col = mx.out_max if u_col > mx.out_max else (mx.out_min if u_col < mx.out_min else u_col)
+        lim, ylim, mx, clip = self.u_limit_pct, self.yaw_u_limit_pct, self.mixer, self._clip
+        u_lat = clip(u_lat, -lim, lim)
+        u_lon = clip(u_lon, -lim, lim)
+        u_yaw = clip(u_yaw, -ylim, ylim)
+        u_col = clip(u_col, mx.out_min, mx.out_max)
         sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"] = u_col, u_lat, u_lon, u_yaw
-        sig["rotor_pct"] = mx.mix(u_col, u_lat, u_lon, u_yaw)
+        sig["rotor_pct"] = self._mix(u_col, u_lat, u_lon, u_yaw)
         last = self._last
         last["u_lat"], last["u_lon"], last["u_yaw"] = u_lat, u_lon, u_yaw
         self._k += 1

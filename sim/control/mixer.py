@@ -102,6 +102,13 @@ class Mixer:
         lo, hi = self.out_min, self.out_max
         return tuple([hi if v > hi else (lo if v < lo else v) for v in raw])
 
+    def mix_many(self, collective, roll, pitch, yaw) -> np.ndarray:
+        """:meth:`mix` for many simulations: axis commands ``(n,)`` (or floats common to all) -> rotor commands
+        ``(n, n_rotors)``, the same sums in the same order and the same clip, so each row equals :meth:`mix`."""
+        raw = np.stack(np.broadcast_arrays(*[collective * a + roll * b + pitch * c + yaw * d
+                                             for a, b, c, d in self._rows]), axis=-1)
+        return np.clip(raw, self.out_min, self.out_max, out=raw)
+
     def unmix(self, rotor_cmds) -> np.ndarray:
         """Rotor commands (%) -> ``[collective, roll, pitch, yaw]`` (%) (exact inverse of unclipped :meth:`mix`)."""
         return self.pinv @ np.asarray(rotor_cmds, dtype=float)

@@ -13,6 +13,8 @@ or plug-ins, and the open-loop mode's attitude supervisor.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rotorlab.errors import ConfigError
@@ -151,6 +153,9 @@ class VectorAttitudeController:
     without gain schedule). ``gains``: one GainSet for all simulations or a sequence of n; ``limits``: the
     vehicle's :class:`~rotorlab.vehicles.spec.CommandLimits`."""
 
+    #: no gain schedule: the flight software's switch test never fires
+    t_next_switch = math.inf
+
     def __init__(self, gains, n: int, dt: float, limits):
         lim = limits
         self.roll = VectorCascadeAxis(*_axis_gains(gains, "roll", n), n, dt, lim.rate_limit_dps, lim.limit_pct)
@@ -178,6 +183,9 @@ class VectorSupervisor:
         s = template or Supervisor()
         self.kp, self.kd, self.u_limit_pct = s.kp, s.kd, s.u_limit_pct
         self._band = s.engage_frac * s.limit_deg
+
+    def reset(self) -> None:
+        """Nothing to reset: the supervisor is a static map of angle and rate."""
 
     def step(self, angle_deg, rate_dps) -> np.ndarray:
         band, lim = self._band, self.u_limit_pct

@@ -116,6 +116,15 @@ class SensorSuite:
             out[..., sl] = s.read(x)
         return out
 
+    def sample(self, x, noise: NoiseStream | None = None) -> dict:
+        """The readings at a control tick, channel -> value: floats from a 1-D ``x`` (one simulation), arrays
+        ``(n,)`` from a 2-D one (a row per simulation); one tick of ``noise`` added when given. The simulator and
+        the batched runner both sample through here."""
+        vals = self.read(x)
+        if noise is not None:
+            self.add_noise(vals, noise.next())
+        return dict(zip(self.channels, vals.tolist() if vals.ndim == 1 else vals.T))
+
     def noise(self, rngs, bias) -> NoiseStream:
         """The noise stream of one simulation (one Generator, ``bias (n_noisy,)``) or of several (a list of
         Generators, ``bias (n, n_noisy)``)."""
