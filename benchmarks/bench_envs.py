@@ -12,6 +12,7 @@ Run: ``python benchmarks/bench_envs.py [--steps N]``.
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
 
 import gymnasium as gym
@@ -19,6 +20,8 @@ import mujoco
 import numpy as np
 
 import rotorlab  # noqa: F401  (registers the envs)
+from rotorlab.sim.rerun_log import record_run
+from rotorlab.sim.runner import run_scenario
 
 
 def _raw_us_per_agent_step(env, n: int) -> float:
@@ -85,11 +88,6 @@ def main() -> None:
 
 def bench_recording(duration_s: float = 10.0) -> None:
     """Cost of ``run --rerun``: pose recording in the run loop and the column-wise write, vs the run itself."""
-    import tempfile
-
-    from rotorlab.sim.rerun_log import record_run
-    from rotorlab.sim.runner import run_scenario
-
     run_scenario("rest", duration_s=0.2)  # warm caches and imports
 
     def timed(**kw):

@@ -18,6 +18,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import functools  # noqa: E402
+import resource
 import time  # noqa: E402
 import timeit  # noqa: E402
 
@@ -66,7 +67,6 @@ def main():
     rows.append((f"nu-gap P2-A2 test-bed vs flight ({nugap(S1, S2):.4f})", t, 3.0, "ms"))
 
     ident = functools.partial(pbsid, order=5, past=11, future=7, delay=3, dt=DT)
-    import resource
 
     ru0 = [resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
     t0 = time.perf_counter()

@@ -20,6 +20,7 @@ import control as ct  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import minimize  # noqa: E402
 
+from rotorlab import lti
 from rotorlab.gains import load_gains  # noqa: E402
 from rotorlab.tune.cascade import cascade_structure, gains_to_theta, plant_model, theta_to_gains  # noqa: E402
 from rotorlab.tune.goals import evaluate, objective, tune_cascade  # noqa: E402
@@ -92,8 +93,6 @@ def sof40():
 
 
 def hinfstruct_zero(P):
-    from rotorlab import lti
-
     return lti.hinfnorm(P[:2, :2])[0]
 
 

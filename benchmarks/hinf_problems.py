@@ -18,6 +18,7 @@ Each builder returns a :class:`Problem`. Run ``python benchmarks/bench_hinfstruc
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import control as ct
 import numpy as np
@@ -38,8 +39,6 @@ class Problem:
 
     def hinfsyn_bound(self) -> float:
         """Optimal full-order closed-loop norm (python-control hinfsyn, re-verified with ab13dd)."""
-        import warnings
-
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             _, CL, _, _ = ct.hinfsyn(self.P, self.nmeas, self.ncon)

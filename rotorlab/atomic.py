@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rotorlab.errors import ConfigError
+
 
 def _create_temp(folder: Path, name: str, suffix: str) -> Path:
     """A new empty file beside the target, created exclusively with the umask applied by the kernel."""
@@ -54,8 +56,6 @@ def check_writable_dir(path, what: str = "output folder") -> Path:
     rotorlab.errors.ConfigError
         Naming the folder and the operating system's reason.
     """
-    from rotorlab.errors import ConfigError
-
     p = Path(path)
     try:
         p.mkdir(parents=True, exist_ok=True)

@@ -17,10 +17,18 @@ from __future__ import annotations
 
 import functools
 import math
+from pathlib import Path
 
+import control as ct
 import numpy as np
 
 from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.lti import as_ss, c2d_zoh_delay
+from rotorlab.sim.control.statespace import AntiWindup, ControllerSpec, load_controller
+from rotorlab.tune import riccati_antiwindup
+from rotorlab.tune.loopshaping import TUHH_AXES, hinf_mixed_sensitivity, tuhh_axis_plant
+from rotorlab.tune.loopshaping import modified_pid as mpid
+from rotorlab.vehicles import load_vehicle
 
 #: axis -> (set-point, angle, rate, command) signal names of the flight software
 AXIS_SIGNALS = {"roll": ("phi_ref", "phi", "p", "u_lat"), "pitch": ("theta_ref", "theta", "q", "u_lon")}
@@ -31,8 +39,6 @@ MODIFIED_PID = {"kp": 0.45, "ki": 0.3, "kd": 0.08}
 
 
 def _axis_plant(axis: str):
-    from rotorlab.tune.loopshaping import TUHH_AXES, tuhh_axis_plant
-
     return tuhh_axis_plant(axis, delay=False), TUHH_AXES[axis]["Td"]
 
 
@@ -40,11 +46,6 @@ def _to_twin(K, axis: str, dt: float, name: str, description: str, aw=None):
     """``K``: continuous 1x2 controller on ``[r - angle, -rate]`` (rad, rad/s) -> ``b``; ``aw``: discrete
     compensator at ``dt`` from :func:`rotorlab.tune.riccati_antiwindup` (input u~ in b; outputs u_d in b,
     y_d in rad and rad/s). Returns the ControllerSpec in deg, deg/s, %."""
-    import control as ct
-
-    from rotorlab.lti import as_ss
-    from rotorlab.sim.control.statespace import AntiWindup, ControllerSpec
-
     ref, ang, rate, cmd = AXIS_SIGNALS[axis]
     Kd = as_ss(ct.c2d(as_ss(K), dt, method="tustin"))
     M = np.array([[1.0, -1.0, 0.0], [0.0, 0.0, -1.0]]) * (100.0 * DEG)  # [r, angle, rate] deg -> e rad, times u = 100 b
@@ -60,8 +61,6 @@ def _to_twin(K, axis: str, dt: float, name: str, description: str, aw=None):
 
 def modified_pid(axis: str, dt: float):
     """Ref. 002's modified PID (fig. 4b): PI on the angle error plus D from the measured rate."""
-    from rotorlab.tune.loopshaping import modified_pid as mpid
-
     g = MODIFIED_PID
     return _to_twin(mpid(g["kp"], g["ki"], g["kd"]), axis, dt, f"modified-pid-{axis}",
                     f"ref. 002 modified PID on {axis}: kp {g['kp']}, ki {g['ki']} 1/s, kd {g['kd']} s (b per rad)")
@@ -69,8 +68,6 @@ def modified_pid(axis: str, dt: float):
 
 def hinf_loopshaping(axis: str, dt: float):
     """Ref. 002 sec. 5 H-inf mixed-sensitivity (loop-shaping) design on the published axis model."""
-    from rotorlab.tune.loopshaping import hinf_mixed_sensitivity
-
     K, gamma = hinf_mixed_sensitivity(axis)
     return _to_twin(K, axis, dt, f"hinf-loopshaping-{axis}",
                     f"ref. 002 H-inf loop-shaping on {axis} (rotorlab.tune.hinf_mixed_sensitivity, gamma {gamma:.3f})")
@@ -79,10 +76,6 @@ def hinf_loopshaping(axis: str, dt: float):
 def hinf_loopshaping_aw(axis: str, dt: float):
     """The H-inf design with ref. 002 sec. 6's Riccati anti-windup compensator, built on the design model
     sampled at the controller rate with its delay as whole samples (``rotorlab.tune.riccati_antiwindup``)."""
-    from rotorlab.lti import c2d_zoh_delay
-    from rotorlab.tune import riccati_antiwindup
-    from rotorlab.tune.loopshaping import hinf_mixed_sensitivity
-
     K, gamma = hinf_mixed_sensitivity(axis)
     G, Td = _axis_plant(axis)
     theta = riccati_antiwindup(c2d_zoh_delay(G, dt, Td))
@@ -105,8 +98,6 @@ def list_designs() -> list[str]:
 def design(name: str, vehicle="tuhh-quad", axes=("roll", "pitch"), dt_s: float | None = None) -> list:
     """The named design for ``vehicle``, one ControllerSpec per axis, at ``dt_s`` (default: the vehicle's
     flight-software period)."""
-    from rotorlab.vehicles import load_vehicle
-
     if name not in DESIGNS:
         raise UnknownNameError("controller design", name, DESIGNS)
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
@@ -128,10 +119,6 @@ def _build(name: str, axis: str, dt: float):
 
 def resolve_controller(value, vehicle):
     """``--controller`` value: a design name (both attitude axes) or a controller file path."""
-    from pathlib import Path
-
-    from rotorlab.sim.control.statespace import load_controller
-
     if value in DESIGNS:
         return design(value, vehicle)
     p = Path(str(value))

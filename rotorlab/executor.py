@@ -16,15 +16,20 @@ that does not answer gives an :class:`ExecutorError` naming the address.
 
 from __future__ import annotations
 
+import asyncio
 import concurrent.futures as cf
 import multiprocessing
 import os
+import signal
+import socket
 from collections.abc import Callable, Sequence
 
 import numpy as np
 from tqdm import tqdm
 
 from rotorlab.errors import RotorlabError
+
+# dask.distributed is imported where a Dask executor is made: an optional dependency (rotorlab[dask]).
 
 __all__ = ["Executor", "ExecutorError", "SerialExecutor", "LocalExecutor", "DaskExecutor", "get_executor",
            "task_seeds", "EXECUTOR_SPECS"]
@@ -82,8 +87,6 @@ class SerialExecutor(Executor):
 def _ignore_sigint():
     """Pool-worker initializer: Ctrl-C reaches the whole process group, and only the parent should handle it
     (it stops the workers); otherwise every worker printed its own KeyboardInterrupt traceback."""
-    import signal
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
@@ -173,9 +176,6 @@ def _connect(Client, address: str, timeout_s: float):
     made: against something that accepts connections but is no scheduler (an HTTP server) ``Client(timeout=...)``
     waited for an answer forever, or read the peer's bytes as a frame length and failed allocating exabytes.
     """
-    import asyncio
-    import socket
-
     host, port = address.removeprefix("tcp://").rsplit(":", 1)
     hint = "start one with `dask scheduler` or use --executor local"
     try:

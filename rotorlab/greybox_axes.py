@@ -17,7 +17,17 @@ from __future__ import annotations
 
 import math
 
+import control as ct
+import mujoco
 import numpy as np
+
+from rotorlab.ident import oe_fit_closed_loop, periodic_average
+from rotorlab.ident.structures import tuhh_axis_structure
+from rotorlab.scenes import build_scene
+from rotorlab.sim.disturbances.input_disturbance_step import axis_torque_per_pct
+from rotorlab.sim.runner import run_scenario
+from rotorlab.sim.scenarios import prbs_periodic
+from rotorlab.vehicles import load_vehicle
 
 AXES = ("roll", "pitch", "yaw")
 SCENE = {"roll": "roll-rig", "pitch": "pitch-rig", "yaw": "free-flight"}
@@ -42,8 +52,6 @@ def yaw_zero_rad_s(vehicle) -> float:
 def apriori_gain(vehicle, axis: str) -> float:
     """The structure's fixed ``K`` in the twin's units (deg out, % in): roll/pitch moment per % times 180/pi;
     yaw ``2 (Q/T) dT/d% / z`` (the form ``K (s + z)``; 4 rotors take half the command each)."""
-    from rotorlab.sim.disturbances.input_disturbance_step import axis_torque_per_pct
-
     per_pct = axis_torque_per_pct(vehicle)
     if axis == "yaw":
         dT = per_pct / vehicle.arm_m
@@ -53,10 +61,6 @@ def apriori_gain(vehicle, axis: str) -> float:
 
 def truth(vehicle, axis: str) -> dict:
     """The twin's ``J`` (kg m^2, about the axis in its experiment's scene), ``p`` (1/s), ``Td`` (s), yaw ``z``."""
-    import mujoco
-
-    from rotorlab.scenes import build_scene
-
     sc = build_scene(SCENE[axis], vehicle)
     m = sc.model
     d = mujoco.MjData(m)
@@ -79,8 +83,6 @@ def truth(vehicle, axis: str) -> dict:
 
 def structure(vehicle, axis: str):
     """TUHH axis structure on ``[angle (deg), rate (deg/s)]`` from the axis command (%), ``K`` fixed a priori."""
-    from rotorlab.ident.structures import tuhh_axis_structure
-
     start = {k: v for k, v in START.items() if axis == "yaw" or k != "z"}
     return tuhh_axis_structure(axis, outputs=("angle", "rate"), K=apriori_gain(vehicle, axis), **start)
 
@@ -90,13 +92,6 @@ def identify_axis(vehicle, axis: str, seed: int = 0, periods: int = 11, restarts
     """Run the experiment on ``axis`` and fit it. Returns ``params``, ``ci95``, ``truth``, ``published``,
     ``std``, ``fit_vaf`` (angle, rate; on the averaged period), ``inside`` (truth inside the interval, per
     parameter), ``rel_error`` and the experiment's settings."""
-    import control as ct
-
-    from rotorlab.ident import oe_fit_closed_loop, periodic_average
-    from rotorlab.sim.runner import run_scenario
-    from rotorlab.sim.scenarios import prbs_periodic
-    from rotorlab.vehicles import load_vehicle
-
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
     dt = v.control_dt_s
     opts = dict(options or {})

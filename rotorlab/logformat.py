@@ -22,6 +22,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from rotorlab.atomic import atomic_path
+from rotorlab.errors import DataError
 
 __all__ = ["TIME_COLUMN", "UNITS_KEY", "META_KEY", "FORMAT_VERSION", "encode_metadata", "decode_metadata",
            "write_parquet", "read_parquet"]
@@ -51,8 +52,6 @@ def decode_metadata(md: dict | None, source: str = "log") -> tuple[dict, dict]:
     rotorlab.errors.DataError
         A key that is not a JSON object (naming ``source`` and the key).
     """
-    from rotorlab.errors import DataError
-
     md = md or {}
     out = []
     for key in (UNITS_KEY, META_KEY):

@@ -14,8 +14,15 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pyarrow.parquet as pq
 
 from rotorlab import atomic
+from rotorlab.errors import DataError
+from rotorlab.logformat import decode_metadata
+from rotorlab.lti import freqresp, is_discrete
+
+# matplotlib is imported by pyplot() on the first figure: a heavy import, and the Agg backend must be chosen
+# before pyplot loads.
 
 __all__ = ["FIG_WIDTH_IN", "DPI", "pyplot", "figure", "save", "read_run", "run_panels", "plot_runs", "plot_bode",
            "label"]
@@ -71,11 +78,6 @@ def read_run(path) -> dict:
     rotorlab.errors.DataError
         No log, or not a rotorlab Parquet log.
     """
-    import pyarrow.parquet as pq
-
-    from rotorlab.errors import DataError
-    from rotorlab.logformat import decode_metadata
-
     p = Path(path)
     log = p / "log.parquet" if p.is_dir() else p
     if not log.is_file():
@@ -126,8 +128,6 @@ def run_panels(runs, signals=None) -> list[list[str]]:
 def plot_runs(runs, path, signals=None, title: str | None = None) -> Path:
     """Time histories of one or several runs (one colour each), one panel per quantity, set-points dashed
     black, the in-flight gain switch marked by a vertical line; x in s, y with units."""
-    from rotorlab.errors import DataError
-
     panels = run_panels(runs, signals)
     for panel in panels:
         for c in panel:
@@ -184,8 +184,6 @@ def plot_bode(models, path, w_rad_s=None, title: str | None = None) -> Path:
     """Bode diagram of ``models``: ``[(label, sys, delay_s, (in_unit, out_unit))]``; magnitude in dB of the
     gain in output units per input unit, phase in deg including the input delay, frequency in rad/s (up to
     the Nyquist frequency of discrete models)."""
-    from rotorlab.lti import freqresp, is_discrete
-
     nyq = min((np.pi / float(s.dt) for _, s, _, _ in models if is_discrete(s)), default=None)
     if w_rad_s is None:
         w_rad_s = np.logspace(-1, np.log10(0.999 * nyq if nyq else 1000.0), 400)

@@ -36,6 +36,7 @@ import math
 import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
+from tqdm import tqdm
 
 from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet
@@ -233,8 +234,6 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     progress : bool
         tqdm progress bar over the ticks.
     """
-    from tqdm import tqdm
-
     if not (isinstance(n, (int, np.integer)) and n >= 1):
         raise ConfigError(field="n", expected="a number of simulations >= 1", got=n)
     n = int(n)

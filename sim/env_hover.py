@@ -43,7 +43,7 @@ from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import HOVER_HEIGHT_M
 from rotorlab.sim.control.flight_software import FlightSoftware
 from rotorlab.sim.env_base import RotorlabEnv, box, clip_obs
-from rotorlab.sim.runner import resolve_gains
+from rotorlab.sim.runner import controller_plugins, resolve_gains
 from rotorlab.sim.simulator import vehicle_mixer
 
 CONTROLS = ("commands", "attitude")
@@ -99,8 +99,6 @@ class HoverEnv(RotorlabEnv):
         self._fs = FlightSoftware(self.gains, vehicle_mixer(v), dt=self.control_dt_s, mode="cascade",
                                   limits=v.commands)
         if controller is not None:
-            from rotorlab.sim.runner import controller_plugins
-
             self._fs.plugins.extend(controller_plugins(controller, self._fs))
         self._target = np.array([0.0, 0.0, -HOVER_HEIGHT_M])
         self._u = np.zeros(4)

@@ -47,6 +47,7 @@ import numpy as np
 
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.sim.control.pid import DiscretePID
+from rotorlab.sim.control.statespace import StateSpaceController, as_controller_spec
 from rotorlab.sim.env_base import RotorlabEnv, box, clip_obs
 from rotorlab.sim.runner import resolve_gains
 
@@ -121,8 +122,6 @@ class RigEnv(RotorlabEnv):
         self.observation_space = box(lo, [-x for x in lo])
         self._pid = DiscretePID(self.gains[axis].inner, self.control_dt_s, -self.u_limit_pct, self.u_limit_pct)
         if controller is not None:
-            from rotorlab.sim.control.statespace import StateSpaceController, as_controller_spec
-
             spec = as_controller_spec(controller)
             cmd = ("u_lat", "u_lon")[self._cmd_index - 1]
             if spec.outputs != (cmd,):

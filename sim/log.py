@@ -7,6 +7,7 @@ Columns are preallocated numpy arrays filled tick by tick, so logging costs a fe
 from __future__ import annotations
 
 import platform
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
@@ -61,8 +62,6 @@ class RunLog:
 
 def versions() -> dict:
     # package metadata, not imports: importing python-control costs seconds and a run does not need it
-    from importlib.metadata import PackageNotFoundError, version
-
     out = {}
     for pkg in ("rotorlab", "mujoco", "control", "numpy", "scipy"):
         try:

@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.vehicles.spec import MAX_LAG_DELAY_S
 
 #: every randomisable parameter, in draw order
 KEYS = ("mass", "inertia", "motor_lag", "delay_s", "imu_mount", "wind")
@@ -80,8 +81,6 @@ def check_spreads(spreads: dict, keys=KEYS, field: str = "randomize") -> dict:
 
 
 def _range(val, field):
-    from rotorlab.vehicles.spec import MAX_LAG_DELAY_S
-
     try:
         lo, hi = (float(x) for x in val)
     except (TypeError, ValueError):

@@ -24,10 +24,14 @@ import os
 import tempfile
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from rotorlab import atomic
 from rotorlab.errors import ConfigError
+from rotorlab.scenes import build_scene
+
+# rerun is imported where a recording is written: a heavy import that only recordings need.
 
 TIMELINE = "sim_time"
 THRUST_ARROW_M_PER_N = 0.02
@@ -65,7 +69,6 @@ def _quat_xyzw(wxyz) -> np.ndarray:
 def _geometry(rec, model, body_paths) -> None:
     """Log every visible geom of ``model`` as static rerun primitives, one batch per body and shape kind (each
     ``log`` call has a fixed cost far above that of a longer batch)."""
-    import mujoco
     import rerun as rr
 
     G = mujoco.mjtGeom
@@ -135,7 +138,6 @@ def _log_columns(rec, log) -> dict:
 
 
 def _log_poses(rec, poses) -> None:
-    import mujoco
     import rerun as rr
 
     t = poses.t
@@ -199,8 +201,6 @@ def record_run(result_or_log, path, *, scene: str | None = None, vehicle=None, i
     info = dict(info or getattr(result_or_log, "info", {}) or {})
     model = poses.model if poses is not None else None
     if model is None and (scene or info.get("scene")) and (vehicle or info.get("vehicle")):
-        from rotorlab.scenes import build_scene
-
         model = build_scene(scene or info["scene"], vehicle or info["vehicle"]).model
     name = "-".join(str(info[k]) for k in ("scenario", "vehicle", "seed") if k in info) or "run"
     rec = rr.RecordingStream(application_id, recording_id=name)
@@ -208,8 +208,6 @@ def record_run(result_or_log, path, *, scene: str | None = None, vehicle=None, i
     try:
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         if model is not None:
-            import mujoco
-
             body_paths = ["world"] + [
                 f"world/bodies/{_safe(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or f'body{b}')}"
                 for b in range(1, model.nbody)]

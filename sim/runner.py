@@ -8,6 +8,8 @@ import os
 import time
 from pathlib import Path
 
+from tqdm import tqdm
+
 from rotorlab import atomic
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import GainSet, load_gains
@@ -16,6 +18,7 @@ from rotorlab.sim.control.flight_software import FlightSoftware
 from rotorlab.sim.control.position import PositionGains
 from rotorlab.sim.control.statespace import StateSpaceController, as_controller_spec
 from rotorlab.sim.log import RunLog, write_run
+from rotorlab.sim.poses import PoseTrack
 from rotorlab.sim.simulator import Simulator, vehicle_mixer
 from rotorlab.vehicles import DEFAULT_VEHICLE, gains_path, list_gains, load_vehicle, vehicle_provenance
 
@@ -185,8 +188,6 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     log = RunLog(columns, n_ticks + 1)
     poses = None
     if record_poses:
-        from rotorlab.sim.poses import PoseTrack
-
         poses = PoseTrack(sim, n_ticks + 1)
     t_loop = time.perf_counter()
     try:
@@ -215,8 +216,6 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
 
 def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, progress: bool,
           poses=None) -> str | None:
-    from tqdm import tqdm
-
     dt = sim.control_dt_s
     p_prev, q_prev, _ = sim.true_rates_dps().tolist()
     on_tick = setup.on_tick

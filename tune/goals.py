@@ -29,8 +29,10 @@ import numpy as np
 from rotorlab import lti
 from rotorlab.config import REQUIRED, Table, _is_number
 from rotorlab.errors import ConfigError
+from rotorlab.gains import GainSet
 from rotorlab.tune import cascade as cas
 from rotorlab.tune.hinfstruct import Channel, StartFailure, _Problem, closed_loop, run_starts
+from rotorlab.tune.margins import crossover_frequencies, margins
 
 __all__ = ["GOAL_TYPES", "Goal", "Tracking", "CrossoverBand", "Sensitivity", "Rejection", "Effort", "Margins", "Poles",
            "GoalResult", "highpass_max_gain", "evaluate", "tune_cascade", "TuneResult", "format_report"]
@@ -167,8 +169,6 @@ class CrossoverBand(Goal):
         return -closed_loop(self._open(Gp), cas.N_MEAS, cas.N_CON, K)
 
     def detail(self, Gp, K):
-        from rotorlab.tune.margins import crossover_frequencies
-
         wc = crossover_frequencies(self.loop_tf(Gp, K), w=_detail_grid(Gp))
         return "crossover " + (", ".join(f"{w:.2f}" for w in wc) if len(wc) else "none") + " rad/s"
 
@@ -238,8 +238,6 @@ class Margins(Goal):
                          name=self.label)]
 
     def detail(self, Gp, K):
-        from rotorlab.tune.margins import margins
-
         cut, inj, meas = cas.LOOP_POINTS[self.point]
         L = -closed_loop(cas.generalised_plant(Gp, cut, inputs=(inj,), outputs=(meas,)), cas.N_MEAS, cas.N_CON, K)
         m = margins(L, w=_detail_grid(Gp))
@@ -364,8 +362,6 @@ def _models_plants(models, dt):
 
 def evaluate(spec, gains, models) -> list[GoalResult]:
     """Every goal of ``spec`` on every model for the gain set ``gains`` (GainSet or AxisGains)."""
-    from rotorlab.gains import GainSet
-
     ax = gains[spec.axis] if isinstance(gains, GainSet) else gains
     S = cas.cascade_structure(spec.dt, ax)
     th = cas.gains_to_theta(S, ax)
@@ -420,8 +416,6 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
     Dask) or, without one, a local pool of ``n_jobs`` processes (:func:`rotorlab.tune.hinfstruct.run_starts`); the
     result does not depend on where they ran.
     """
-    from rotorlab.gains import GainSet
-
     t0 = time.perf_counter()
     ax = start_gains[spec.axis] if isinstance(start_gains, GainSet) else start_gains
     S = cas.cascade_structure(spec.dt, ax)

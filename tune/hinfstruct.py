@@ -53,9 +53,10 @@ from collections.abc import Sequence
 
 import control as ct
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import minimize, nnls
 
 from rotorlab import lti
+from rotorlab.executor import LocalExecutor, SerialExecutor, task_seeds
 from rotorlab.tune.blocks import Block, StaticGain, Structure
 
 __all__ = ["Channel", "HinfstructResult", "hinfstruct", "closed_loop", "optimise", "NotStabilisableError",
@@ -782,8 +783,6 @@ def _min_norm_hull(G):
     """Smallest-norm vector of the convex hull of the columns of ``G`` (nx, k): the HANSO / gradient-sampling
     stationarity measure. ``min ||G l||, l >= 0, sum l = 1`` as a non-negative least-squares problem with the
     simplex equality as a heavily weighted extra row (scipy's nnls; k is at most a few dozen)."""
-    from scipy.optimize import nnls
-
     k = G.shape[1]
     if k == 1:
         return G[:, 0]
@@ -1047,8 +1046,6 @@ def run_starts(prob: _Problem, theta0, lower, upper, *, starts=1, seed=0, n_jobs
     of ``n_jobs`` workers, else in this process; the result does not depend on which. Returns one entry per
     start: ``(theta, merit, history, predicted relative decrease, (wall s, CPU s))`` or a :class:`StartFailure`.
     """
-    from rotorlab.executor import LocalExecutor, SerialExecutor, task_seeds
-
     rng = np.random.default_rng(seed)
     if spread is None:
         thetas = [_scaled_start(prob, theta0, rng, lower, upper) for _ in range(max(starts, 1) - 1)]

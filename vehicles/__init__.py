@@ -3,9 +3,10 @@
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
-from rotorlab.errors import UnknownNameError
+from rotorlab.errors import ConfigError, UnknownNameError
 
 from .spec import G0, RHO_AIR, RigSpec, RotorSpec, VehicleSpec, load_vehicle_file, parse_vehicle
 
@@ -28,8 +29,6 @@ def vehicle_path(name_or_path) -> Path:
     if (VEHICLES_DIR / str(name_or_path) / "vehicle.toml").exists():
         return VEHICLES_DIR / str(name_or_path) / "vehicle.toml"
     if p.suffix == ".toml":
-        from rotorlab.errors import ConfigError
-
         raise ConfigError("vehicle file not found", file=p)
     raise UnknownNameError("vehicle", str(name_or_path), list_vehicles())
 
@@ -37,8 +36,6 @@ def vehicle_path(name_or_path) -> Path:
 def vehicle_provenance(v: VehicleSpec) -> dict:
     """Where a vehicle came from, for run.json: its name, file (absolute), the file's SHA-256 and whether it is
     the shipped file unmodified (a modified copy keeps the shipped name but not the hash)."""
-    import hashlib
-
     path = Path(v.path)
     if not path.is_file():
         return {"name": v.name, "path": None, "sha256": None, "shipped": False}

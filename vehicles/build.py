@@ -26,6 +26,7 @@ import math
 import mujoco
 import numpy as np
 
+from .rotor_theory import hover
 from .spec import VehicleSpec, check_delay_steps
 
 ROTOR_ACTUATORS = ("thrust", "inflow", "hx", "hy")
@@ -140,7 +141,6 @@ def _hub_inertia(v: VehicleSpec):
     r = v.rotor
     if r.hub_stiffness_Nm_per_rad <= 0.0:
         return None
-    from .rotor_theory import hover
 
     i_b = hover(v).blade_flap_inertia_kgm2
     return r.blades * 3.0 * i_b / r.radius_m**2, r.blades / 2.0 * i_b, r.blades * i_b

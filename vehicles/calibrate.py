@@ -22,8 +22,14 @@ from __future__ import annotations
 import dataclasses
 import sys
 
+import control as ct
 import numpy as np
 import scipy.optimize as so
+
+from rotorlab import lti
+from rotorlab.sim.linearize import linearize
+from rotorlab.vehicles import load_vehicle
+from rotorlab.vehicles.rotor_theory import hover, thrust_slope_N_per_rad
 
 W_FIT_RAD_S = np.logspace(0.0, np.log10(15.0), 24)
 # hub damping per rotor for the P2-A2 rotor (R = 0.27 m, Omega = 316 rad/s), hingeless/centre-spring theory
@@ -70,13 +76,6 @@ def closed_form(v, axis="pitch"):
 
 def calibrate(vehicle: str, axis: str = "pitch"):
     """Least-squares rotor calibration against the published test-bed model; returns the TOML values and fit."""
-    import control as ct
-
-    from rotorlab import lti
-    from rotorlab.sim.linearize import linearize
-    from rotorlab.vehicles import load_vehicle
-    from rotorlab.vehicles.rotor_theory import hover, thrust_slope_N_per_rad
-
     v = load_vehicle(vehicle)
     pm = v.published["testbed"]
     target = lti.freqresp(ct.tf(pm.num, pm.den), W_FIT_RAD_S)[:, 0, 0]

@@ -10,10 +10,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
+from rotorlab.cli import CLIError, describe
+from rotorlab.errors import RotorlabError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
+
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("bode", help="Bode diagram of model JSON files (PNG) and their poles/zeros", **describe(__doc__))
     p.add_argument("models", nargs="+", metavar="MODEL", help="model JSON file(s)")
     p.add_argument("--out", default="bode.png", help="PNG to write")
@@ -25,10 +31,6 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    import numpy as np
-
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import RotorlabError
     from rotorlab.ident.modelio import describe_model, load_model
     from rotorlab.lti import is_discrete
     from rotorlab.plotting import plot_bode

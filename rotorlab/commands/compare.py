@@ -9,10 +9,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rotorlab.cli import CLIError, describe
+from rotorlab.errors import RotorlabError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
+
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("compare", help="compare runs: metrics table and overlaid signals (PNG)", **describe(__doc__))
     p.add_argument("runs", nargs="+", metavar="RUN", help="two or more run folders")
     p.add_argument("--signals", default=None, metavar="A,B+C",
@@ -42,8 +46,6 @@ def table_lines(runs, all_metrics: bool = False) -> list[str]:
 
 
 def run(args) -> int:
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import RotorlabError
     from rotorlab.plotting import plot_runs, read_run
 
     if len(args.runs) < 2:

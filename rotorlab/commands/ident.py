@@ -11,14 +11,20 @@ header row; --column-map renames CSV columns, --resample interpolates uneven tim
 
 from __future__ import annotations
 
-from rotorlab.cli import positive_int
+from pathlib import Path
+
+import numpy as np
+
+from rotorlab.cli import CLIError, describe, positive_int
+from rotorlab.errors import ConfigError, DataError, UnknownNameError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
 
 STRUCTURES = ("rate-tf", "rigid-rig", "pitch")
 
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("ident", help="identify a model from a log and write it as JSON", **describe(__doc__))
     p.add_argument("log", help="Parquet log (rotorlab format) or CSV with a 't' column (see --column-map)")
     # checked in run() against rotorlab.ident.methods.METHODS, the table the pipeline uses: importing it here
@@ -50,8 +56,6 @@ def add_parser(sub):
 
 def parse_column_map(items) -> dict:
     """``["t=time", "q=pitch_rate,u=cmd"]`` -> ``{"t": "time", "q": "pitch_rate", "u": "cmd"}``."""
-    from rotorlab.cli import CLIError
-
     out = {}
     for item in (x.strip() for it in items for x in it.split(",")):
         if not item:
@@ -97,13 +101,7 @@ def _identify(args, u, y, dt, delay):
 
 
 def run(args) -> int:
-    from pathlib import Path
-
-    import numpy as np
-
     from rotorlab.atomic import check_writable_dir
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import ConfigError, DataError, UnknownNameError
     from rotorlab.ident.logs import check_identifiable, load_log
     from rotorlab.ident.methods import get_method
     from rotorlab.ident.metrics import simulate, vaf

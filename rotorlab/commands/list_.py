@@ -8,10 +8,14 @@ from __future__ import annotations
 import json
 import re
 
+from rotorlab.cli import CLIError, describe
+from rotorlab.errors import RotorlabError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
+
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("list", help="list vehicles, scenes, scenarios and gain sets; --scenario NAME: its options",
                        **describe(__doc__))
     p.add_argument("--json", action="store_true", help="machine-readable output")
@@ -75,9 +79,6 @@ def _toml(v) -> str:
 
 
 def run(args) -> int:
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import RotorlabError
-
     if args.scenario:
         try:
             info = scenario_info(args.scenario)

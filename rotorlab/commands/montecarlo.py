@@ -16,7 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rotorlab.cli import positive_int, seed_int
+from rotorlab.cli import CLIError, describe, positive_int, seed_int
+from rotorlab.errors import RotorlabError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
 
 #: parameter -> default spread (distributions: rotorlab.sim.randomize; ``delay`` is its ``delay_s``)
 VARY = {"mass": 0.10, "inertia": 0.10, "delay": 0.02, "wind": 5.0}
@@ -29,8 +33,6 @@ SAMPLE_UNITS = {"sample": "1", "mass_scale": "1", "inertia_scale": "1", "extra_d
 
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("montecarlo", help="scenario Monte Carlo over seeded vehicle/wind parameter spreads",
                        **describe(__doc__))
     p.add_argument("scenario", help="scenario name (see rotorlab list)")
@@ -51,8 +53,6 @@ def add_parser(sub):
 
 def parse_vary(text: str) -> dict:
     """``"mass=0.2,delay"`` -> ``{"mass": 0.2, "delay": 0.02}`` (a bare name takes its default spread)."""
-    from rotorlab.cli import CLIError
-
     out = {}
     for item in (x.strip() for x in text.split(",")):
         if not item:
@@ -112,8 +112,6 @@ def run(args) -> int:
     import pyarrow as pa
 
     from rotorlab import atomic
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import RotorlabError
     from rotorlab.executor import get_executor
     from rotorlab.logformat import write_parquet
     from rotorlab.sim import scenarios

@@ -11,12 +11,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rotorlab.cli import positive_int, seed_int
+from rotorlab.cli import CLIError, describe, positive_int, seed_int
+from rotorlab.errors import RotorlabError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
 
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("pipeline", help="run the end-to-end identification + tuning pipeline on a twin (resumable)",
                        **describe(__doc__))
     p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name (see rotorlab list)")
@@ -36,8 +38,6 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import RotorlabError
     from rotorlab.pipeline import PipelineOptions, run_pipeline
     from rotorlab.vehicles import VEHICLES_DIR, load_vehicle
 

@@ -9,10 +9,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from rotorlab.cli import CLIError, describe
+from rotorlab.errors import RotorlabError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
+
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("plot", help="plot a run's signals to a PNG", **describe(__doc__))
     p.add_argument("run", help="run folder (rotorlab run --out DIR) or its log.parquet")
     p.add_argument("--signals", default=None, metavar="A,B+C",
@@ -22,8 +26,6 @@ def add_parser(sub):
 
 
 def run(args) -> int:
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import RotorlabError
     from rotorlab.plotting import plot_runs, read_run
 
     try:

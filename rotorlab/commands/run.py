@@ -10,15 +10,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from rotorlab.cli import seed_int
+from rotorlab.cli import CLIError, describe, seed_int
+from rotorlab.errors import RotorlabError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
 
 #: at most this many per-step lines in the summary (the rest are in run.json)
 MAX_STEP_LINES = 16
 
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("run", help="run a scenario headless and write a run folder (log.parquet, run.json)",
                        **describe(__doc__))
     p.add_argument("scenario", help="scenario name (see rotorlab list; rotorlab list --scenario NAME shows its options)")
@@ -45,8 +47,6 @@ def add_parser(sub):
 def parse_options(items) -> dict:
     """``KEY=VALUE`` strings -> dict; values parsed as TOML (``2.5``, ``true``, ``[1, 2]``), else kept as text."""
     import tomllib
-
-    from rotorlab.cli import CLIError
 
     out = {}
     for it in items:
@@ -105,8 +105,6 @@ def summary_lines(res, rrd=None) -> list[str]:
 
 
 def run(args) -> int:
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import RotorlabError
     from rotorlab.sim.runner import INTERRUPTED, run_scenario
     from rotorlab.vehicles import load_vehicle
 

@@ -10,12 +10,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rotorlab.cli import positive_int, seed_int
+from rotorlab.cli import CLIError, describe, positive_int, seed_int
+from rotorlab.errors import RotorlabError, UnknownNameError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
 
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("tune", help="structured H-inf tuning of the attitude cascade", **describe(__doc__))
     p.add_argument("--model", required=True, action="append",
                    help="model JSON (as written by 'rotorlab ident', or {num, den, dt, delay_s}); repeat the "
@@ -40,9 +42,7 @@ def _start_gains(start: str, spec_path):
     if p.suffix == ".toml" or p.exists():
         return load_gains(p)
 
-    from rotorlab.cli import CLIError
     from rotorlab.config import read_toml
-    from rotorlab.errors import UnknownNameError
     from rotorlab.vehicles import VEHICLES_DIR
 
     meta = read_toml(spec_path, "spec").get("meta", {})
@@ -58,8 +58,6 @@ def _start_gains(start: str, spec_path):
 
 def run(args) -> int:
     from rotorlab import atomic
-    from rotorlab.cli import CLIError
-    from rotorlab.errors import RotorlabError
     from rotorlab.gains import save_gains
     from rotorlab.ident.modelio import load_model
     from rotorlab.tune.cascade import PlantModel

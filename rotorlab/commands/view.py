@@ -9,9 +9,18 @@ validation run, all opened together).
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
+import subprocess
 import sys
 from pathlib import Path
+
+from rotorlab.cli import CLIError, describe
+from rotorlab.errors import RotorlabError
+
+# Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
+# so what a command needs beyond the CLI loads only when that command runs.
 
 RECORDING = "recording.rrd"
 #: where a pipeline run folder keeps its recordings, relative to the folder
@@ -19,8 +28,6 @@ PIPELINE_RECORDINGS = ("report/recordings", "recordings")
 
 
 def add_parser(sub):
-    from rotorlab.cli import describe
-
     p = sub.add_parser("view", help="open a run's rerun recording(s) in the rerun viewer (native or web)",
                        **describe(__doc__))
     p.add_argument("path", help="run folder, pipeline folder or .rrd file")
@@ -50,10 +57,6 @@ class _TableLog:
 def find_recordings(path) -> list[Path]:
     """The ``.rrd`` files to open for ``path``: the file itself, a run folder's recording (written from its
     log when there is none), or a pipeline folder's ``report/recordings/*.rrd``."""
-    import json
-
-    from rotorlab.cli import CLIError
-
     p = Path(path)
     if p.suffix == ".rrd":
         if not p.is_file():
@@ -72,7 +75,6 @@ def find_recordings(path) -> list[Path]:
     if not log_path.is_file():
         raise CLIError(f"{p} has no .rrd recording (looked in {p}, " +
                        ", ".join(str(p / s) for s in PIPELINE_RECORDINGS) + ") and no log.parquet to make one from")
-    from rotorlab.errors import RotorlabError
     from rotorlab.sim.rerun_log import record_run
 
     info = json.loads(info_path.read_text()) if info_path.is_file() else {}
@@ -100,8 +102,6 @@ def web_command(exe: str, rrds, web_port: int, grpc_port: int) -> list[str]:
 
 def run(args) -> int:
     import shlex
-    import shutil
-    import subprocess
 
     rrds = find_recordings(args.path)
     exe = shutil.which("rerun")

@@ -19,6 +19,9 @@ import numpy as np
 
 from rotorlab.errors import ConfigError
 
+# python-control (which loads matplotlib) is imported where a plug-in is built from a system: the flight
+# software itself runs without it.
+
 
 @runtime_checkable
 class Plugin(Protocol):

@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rotorlab import atomic
+from rotorlab.config import read_toml
 from rotorlab.errors import ConfigError
 
 FORMAT = "rotorlab-controller/1"
@@ -197,8 +199,6 @@ def parse_controller(data: dict, src="<controller>") -> ControllerSpec:
 
 def load_controller(path) -> ControllerSpec:
     """Read a controller file (``.json`` or ``.toml``)."""
-    from rotorlab.config import read_toml
-
     path = Path(path)
     if path.suffix == ".toml":
         return parse_controller(read_toml(path, "controller"), path)
@@ -215,8 +215,6 @@ def load_controller(path) -> ControllerSpec:
 
 def save_controller(path, spec: ControllerSpec) -> Path:
     """Write ``spec`` as JSON, atomically."""
-    from rotorlab import atomic
-
     return atomic.write_text(path, json.dumps(spec.to_dict(), indent=1) + "\n")
 
 

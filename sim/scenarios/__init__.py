@@ -9,7 +9,9 @@ scenario's ``metrics(log, ctx)`` function if the module has one.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import importlib
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -90,9 +92,6 @@ def merged_options(ctx: Context, defaults: dict) -> dict:
     (a number where the default is a number, a list of numbers where it is such a list), and no number may be NaN
     or infinite.
     """
-    import difflib
-    import math
-
     unknown = sorted(set(ctx.options) - set(defaults))
     if unknown:
         close = difflib.get_close_matches(unknown[0], sorted(defaults), n=1)

@@ -13,6 +13,7 @@ a reading is ``value + (bias + std * z)`` (:class:`NoiseStream`).
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from rotorlab.errors import ConfigError
@@ -21,8 +22,6 @@ from rotorlab.scenes import PREFIX
 
 def sensor_slice(model, name: str) -> slice | None:
     """Where MuJoCo sensor ``name`` (with or without the vehicle prefix) lives in ``sensordata``; None if absent."""
-    import mujoco
-
     for full in (f"{PREFIX}{name}", name):
         sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, full)
         if sid >= 0:

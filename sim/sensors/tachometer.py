@@ -6,6 +6,7 @@ its square root. Variable pitch: the rotors turn at the vehicle's fixed ``rotor_
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from rotorlab.scenes import PREFIX
@@ -17,8 +18,6 @@ class Tachometer(Sensor):
     field = "act"
 
     def __init__(self, model, vehicle):
-        import mujoco
-
         ids = []
         for i in range(1, vehicle.n_rotors + 1):
             a = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{PREFIX}thrust{i}")

@@ -6,6 +6,7 @@ Vehicles without the TUHH axis model (the ANTEOS twins) skip it."""
 from __future__ import annotations
 
 from rotorlab.executor import task_seeds
+from rotorlab.greybox_axes import AXES, identify_axis
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
 
 __all__ = ["STAGE", "identify_task"]
@@ -16,15 +17,11 @@ VEHICLES = ("tuhh-quad",)
 
 def identify_task(task: dict) -> dict:
     """One axis (picklable task for the executors)."""
-    from rotorlab.greybox_axes import identify_axis
-
     return {"axis": task["axis"], **identify_axis(task["vehicle"], task["axis"], seed=task["seed"],
                                                    periods=task["periods"], restarts=task["restarts"])}
 
 
 def run(ctx: StageContext) -> dict:
-    from rotorlab.greybox_axes import AXES
-
     if ctx.vehicle not in VEHICLES:
         return {"skipped": f"skipped: the three-axis grey-box route is ref. 002's (vehicles {list(VEHICLES)})"}
     s = ctx.settings

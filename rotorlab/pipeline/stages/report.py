@@ -26,7 +26,9 @@ from rotorlab.lti import d2c_zoh, freqresp
 from rotorlab.pipeline import tuhh_report
 from rotorlab.pipeline.runfolder import Stage, StageContext
 from rotorlab.pipeline.settings import DT_S
+from rotorlab.plotting import figure, label, plot_runs, read_run, save
 from rotorlab.sim.log import RunLog
+from rotorlab.sim.rerun_log import record_run
 
 __all__ = ["STAGE", "write_report", "render_figures", "flatten_metrics", "compare_sets", "claims", "headline_rows",
            "HEADLINE"]
@@ -155,9 +157,6 @@ def claims(summary: dict, tuned: str) -> list[dict]:
 
 
 def _save(fig, path: Path) -> str:
-    # imported on first figure: matplotlib is slow to import
-    from rotorlab.plotting import save
-
     save(fig, path)
     return f"figures/{path.name}"
 
@@ -165,8 +164,6 @@ def _save(fig, path: Path) -> str:
 def _fig_spectrum(ctx: StageContext, figs: Path):
     """Input and output spectra of the identification campaign, each on its own axes and in its own units
     (one-sided Welch PSD per rad/s), with the band the campaign was designed to excite."""
-    from rotorlab.plotting import figure, label
-
     log, units = ctx.run.experiment_log("id"), {"u_lon": "%", "q": "deg/s"}
     exc = ctx.run.result("experiments").get("excitation", {})
     lo, hi = exc.get("band_rad_s", (4.0, 8.0))
@@ -187,8 +184,6 @@ def _fig_spectrum(ctx: StageContext, figs: Path):
 
 
 def _fig_bode(ctx: StageContext, figs: Path, ident: dict):
-    from rotorlab.plotting import figure, label
-
     fig, axs = figure(2, 1, height_in=7.5, sharex=True)
     am, ap = axs[:, 0]
     rep = ctx.run.replicas_path()
@@ -223,8 +218,6 @@ def _fig_bode(ctx: StageContext, figs: Path, ident: dict):
 def _fig_poles(ctx: StageContext, figs: Path):
     """Bootstrap pole clouds in the s-plane: every replica pole in view on the left, a zoom on the
     low-frequency region of the truth's dominant poles on the right."""
-    from rotorlab.plotting import figure, label
-
     rep = ctx.run.replicas_path()
     if not rep.exists():
         return None
@@ -258,8 +251,6 @@ def _fig_poles(ctx: StageContext, figs: Path):
 
 
 def _fig_montecarlo(ctx: StageContext, figs: Path, sets):
-    from rotorlab.plotting import figure, label
-
     p = ctx.run.montecarlo_path()
     if not p.exists():
         return None
@@ -288,8 +279,6 @@ def _fig_montecarlo(ctx: StageContext, figs: Path, sets):
 def _fig_scenario(ctx: StageContext, figs: Path, scenario: str, sets, fname=None):
     """The validation runs of ``scenario``, one colour per gain set, with set-points and the in-flight gain
     switch marked (:func:`rotorlab.plotting.plot_runs`)."""
-    from rotorlab.plotting import plot_runs, read_run
-
     runs = []
     for s in sets:
         path = ctx.run.validation_log_path(scenario, s)
@@ -412,9 +401,6 @@ def _write_gains(ctx: StageContext, sets):
 
 def _recordings(ctx: StageContext, sets, summary) -> dict:
     """Rerun recordings (.rrd) of the validation runs when the rerun logger exists (time series + scene)."""
-    # imported here: the rerun SDK is heavy and only this step of the report needs it
-    from rotorlab.sim.rerun_log import record_run
-
     out = {}
     paths = ctx.run.validation_log_paths()
     limit = ctx.settings.get("record_runs")
@@ -484,10 +470,10 @@ def headline_rows(s) -> tuple[list, list]:
                                            ("better" if (chg < 0) == lower else "worse"))
         rows.append([label] + [_f(vals.get(n), fmt) for n in sets] + [_f(chg, "{:+.1f} %"), verdict])
 
-    for sc, key, label, lower in HEADLINE:
+    for sc, key, row_name, lower in HEADLINE:
         vals = {n: _metric(s, sc, key, n) for n in sets}
         if any(v is not None for v in vals.values()):
-            add(label, vals, lower)
+            add(row_name, vals, lower)
     add("model: robust-stability limit h_lim (higher is better)", s["h_lim"], False, "{:.3f}")
     add("model: in-flight h_lim, flight model's own W_delta (higher is better)", s.get("h_lim_flight", {}), False,
         "{:.3f}")

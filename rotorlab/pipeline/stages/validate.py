@@ -3,6 +3,7 @@ with common random numbers (every set sees the same noise, gusts and turbulence)
 
 from __future__ import annotations
 
+from rotorlab.designs import DESIGN_VEHICLES, DESIGNS, design
 from rotorlab.executor import task_seeds
 from rotorlab.gains import parse_gains
 from rotorlab.pipeline.models import gains_table
@@ -49,8 +50,6 @@ def run_validation(task: dict) -> dict:
 def run_design_experiment(task: dict) -> dict:
     """One of ref. 002's experiments with one named design on one rig (picklable task). The set-point step's
     metrics are kept per axis (``{axis}.rise_time_s``, ...) so the roll and pitch runs merge into one entry."""
-    from rotorlab.designs import design
-
     scenario, options, duration = DESIGN_EXPERIMENTS[task["experiment"]]
     r = run_scenario(scenario, task["vehicle"], scene=task["scene"], seed=task["seed"], duration_s=duration,
                      options=options, controller=design(task["design"], task["vehicle"]))
@@ -64,8 +63,6 @@ def run_design_experiment(task: dict) -> dict:
 
 
 def _design_tasks(ctx) -> list[dict]:
-    from rotorlab.designs import DESIGN_VEHICLES, DESIGNS
-
     if ctx.vehicle not in DESIGN_VEHICLES:
         return []
     seeds = task_seeds(ctx.seed + SEED_OFFSET + 1, len(DESIGN_EXPERIMENTS))
