@@ -369,6 +369,7 @@ def test_every_report_figure_is_labelled_with_units(run, monkeypatch, tmp_path):
         return real_save(fig, path)
 
     monkeypatch.setattr(plotting, "save", save)
+    monkeypatch.setattr(report, "save", save)  # the report's own figures, saved through its module-level import
     folder = RunFolder(out)
     paths, skipped = report.render_figures(types.SimpleNamespace(run=folder), tmp_path, folder.result("identify"),
                                            list(s["gains"]), s["compared_set"])
