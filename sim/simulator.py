@@ -111,10 +111,11 @@ def set_rotor_ctrl(ctrl, rotor_pct, vehicle, thrust, spinup) -> None:
     """Rotor commands (%) into MuJoCo's controls of the thrust actuators and their spin-up twins (same control):
     one simulation (``ctrl (nu,)``, ``rotor_pct (n_rotors,)``) or a row per simulation (``(n, nu)``,
     ``(n, n_rotors)``, the batched runner)."""
-    c = vehicle.command_to_ctrl(np.asarray(rotor_pct, dtype=float)[..., : len(thrust)])
-    ctrl[..., thrust] = c
+    c = vehicle.command_to_ctrl(np.asarray(rotor_pct, dtype=float)[..., : len(thrust)]).T
+    # indexed through the transposes (actuator index first): ctrl[..., ids] costs 10x more than ctrl[ids] per tick
+    ctrl.T[thrust] = c
     if spinup.size:
-        ctrl[..., spinup] = c
+        ctrl.T[spinup] = c
 
 
 def set_wind(opt_wind, ctrl, xmat, wind_world, aero: dict) -> None:
@@ -123,9 +124,9 @@ def set_wind(opt_wind, ctrl, xmat, wind_world, aero: dict) -> None:
     the airframe's axes (:func:`body_wind`; ``xmat`` None: a scene without an airframe takes it unrotated).
     One simulation (``opt_wind, wind_world (3,)``, ``ctrl (nu,)``, ``xmat (9,)``) or a row per simulation."""
     opt_wind[...] = wind_world
-    wb = wind_world if xmat is None else body_wind(xmat, wind_world)
-    for k, name in enumerate(("hx", "hy", "inflow")):
-        ctrl[..., aero[name]] = wb[..., k:k + 1]
+    wb = (wind_world if xmat is None else body_wind(xmat, wind_world)).T
+    ct = ctrl.T  # actuator index first, as in set_rotor_ctrl
+    ct[aero["hx"]], ct[aero["hy"]], ct[aero["inflow"]] = wb
 
 
 class Diverged(RotorlabError):
