@@ -7,8 +7,14 @@ import re
 
 import numpy as np
 import pytest
+from scipy.signal import lfilter
 
+import rotorlab.plotting as plotting
 from rotorlab.cli import COMMANDS, build_parser, main
+from rotorlab.errors import ConfigError
+from rotorlab.sim.rerun_log import record_run
+from rotorlab.sim.runner import run_scenario
+from rotorlab.sim.scenarios.gust import DEFAULTS
 
 
 def _lines(text):
@@ -84,7 +90,6 @@ def test_help_is_complete(name):
 def test_list_scenario_shows_options_and_defaults(capsys):
     assert main(["list", "--scenario", "gust"]) == 0
     text = capsys.readouterr().out
-    from rotorlab.sim.scenarios.gust import DEFAULTS
 
     for k in DEFAULTS:
         line = next(ln for ln in _lines(text) if ln.strip().startswith(k))
@@ -96,9 +101,6 @@ def test_list_scenario_shows_options_and_defaults(capsys):
 
 
 def test_view_exits_0_without_a_display_and_finds_pipeline_recordings(tmp_path, capsys, monkeypatch):
-    from rotorlab.sim.rerun_log import record_run
-    from rotorlab.sim.runner import run_scenario
-
     for k in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
         monkeypatch.delenv(k, raising=False)
     res = run_scenario("rest", scene="pitch-rig", duration_s=0.2)
@@ -122,7 +124,6 @@ def test_ident_hints_name_cli_flags_and_the_flags_work(tmp_path, capsys):
     n = 2000
     t = 0.02 * np.arange(n)
     u = np.repeat(rng.choice([-5.0, 5.0], n // 5), 5)
-    from scipy.signal import lfilter
 
     y = lfilter([0.0, 0.2], [1.0, -0.9], u)  # y[k+1] = 0.9 y[k] + 0.2 u[k]
     t_uneven = t.copy()
@@ -152,16 +153,12 @@ def test_ident_hints_name_cli_flags_and_the_flags_work(tmp_path, capsys):
 
 
 def test_errors_print_numbers_not_numpy_reprs():
-    from rotorlab.errors import ConfigError
-
     assert "np.float64" not in str(ConfigError(field="x", expected="y", got=np.float64(1.0)))
 
 
 @pytest.fixture
 def captured_figures(monkeypatch):
     """Every figure rotorlab.plotting saves, with its axes' labels, kept for inspection (and still written)."""
-    import rotorlab.plotting as plotting
-
     figs = []
     real_save = plotting.save
 

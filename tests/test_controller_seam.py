@@ -9,9 +9,12 @@ import pytest
 
 from rotorlab import lti
 from rotorlab.cli import main
+from rotorlab.designs import design
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import load_gains
 from rotorlab.sim.control.statespace import ControllerSpec, StateSpaceController, load_controller, save_controller
+from rotorlab.sim.env_hover import HoverEnv
+from rotorlab.sim.env_rig import RigEnv
 from rotorlab.sim.runner import run_scenario
 from rotorlab.vehicles import gains_path
 
@@ -60,8 +63,6 @@ def test_controller_runs_at_its_own_rate_and_holds_its_output():
 
 
 def test_antiwindup_is_silent_while_unsaturated():
-    from rotorlab.designs import design
-
     kw = dict(scene="pitch-rig", duration_s=3.0, seed=4, options={"fraction": 0.1})
     plain = run_scenario("input-disturbance", "tuhh-quad", controller=design("hinf-loopshaping", "tuhh-quad"), **kw)
     aw = run_scenario("input-disturbance", "tuhh-quad", controller=design("hinf-loopshaping-aw", "tuhh-quad"), **kw)
@@ -121,15 +122,10 @@ def test_cli_flies_a_named_design_and_a_file(tmp_path, capsys):
     with pytest.raises(ConfigError, match="alpha"):
         run_scenario("rest", "anteos-p2a2", scene="pitch-rig", controller=bad, duration_s=0.1)
     with pytest.raises(UnknownNameError):
-        from rotorlab.designs import design
         design("lqg", "tuhh-quad")
 
 
 def test_gym_envs_fly_a_controller_in_place_of_the_cascade():
-    from rotorlab.designs import design
-    from rotorlab.sim.env_hover import HoverEnv
-    from rotorlab.sim.env_rig import RigEnv
-
     ctl = design("hinf-loopshaping", "tuhh-quad", axes=("pitch",))[0]
     env = RigEnv("pitch", "tuhh-quad", control="controller", controller=ctl, task="regulation", sensor_noise=False)
     obs, _ = env.reset(seed=0, options={"setpoint_deg": 5.0})

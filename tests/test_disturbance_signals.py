@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 from scipy import signal
+from scipy.integrate import quad
 
 from rotorlab.errors import ConfigError
 from rotorlab.sim.disturbances import (
@@ -34,7 +35,6 @@ def test_low_altitude_scales_match_the_standard():
 
 @pytest.mark.parametrize("psd", [dryden_psd_u, dryden_psd_v])
 def test_psd_formulas_integrate_to_sigma_squared(psd):
-    from scipy.integrate import quad
     sigma, L, V = 1.7, 30.0, 5.0
     total = quad(lambda w: psd(w, sigma, L, V), 0, np.inf, limit=200)[0]
     assert total == pytest.approx(sigma ** 2, rel=1e-8)

@@ -7,6 +7,7 @@ import re
 import numpy as np
 import pytest
 
+import rotorlab.sim.disturbances as pkg
 from rotorlab.errors import ConfigError
 from rotorlab.gains import parse_gains
 from rotorlab.scenes import HOVER_HEIGHT_M
@@ -112,8 +113,6 @@ def _snake(name: str) -> str:
 
 
 def test_registry_holds_every_disturbance_in_a_file_named_after_it():
-    import rotorlab.sim.disturbances as pkg
-
     defined = set()
     for info in pkgutil.iter_modules(pkg.__path__):
         mod = importlib.import_module(f"{pkg.__name__}.{info.name}")

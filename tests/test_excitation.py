@@ -17,6 +17,8 @@ from rotorlab.excitation import (
     spectrum_check,
     sweep,
 )
+from rotorlab.pipeline.stages.experiments import excitation_check
+from rotorlab.vehicles import load_vehicle
 
 DT = 0.02
 
@@ -137,9 +139,6 @@ def test_design_campaign_concentrates_power_in_the_band():
 
 
 def test_experiments_stage_says_when_the_band_is_missed():
-    from rotorlab.pipeline.stages.experiments import excitation_check
-    from rotorlab.vehicles import load_vehicle
-
     spec = load_vehicle("anteos-p2a2")
     fast = prbs(dt=DT, duration_s=120.0, hold_range_s=(0.1, 0.2), amplitude=9.0, seed=0)  # power near 20 rad/s
     chk = excitation_check(fast, spec)

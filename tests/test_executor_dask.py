@@ -5,6 +5,7 @@ dask://HOST:PORT` reaches a remote one."""
 
 import functools
 import os
+import time
 
 import control as ct
 import numpy as np
@@ -60,8 +61,6 @@ class _Where:
 
 
 def _slow_square(x):
-    import time
-
     time.sleep(0.2)  # long enough that the scheduler spreads the tasks over both workers
     return x * x
 

@@ -21,6 +21,7 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from rotorlab.cli import main  # noqa: E402
+from rotorlab.tune import goals  # noqa: E402
 from rotorlab.vehicles import VEHICLES_DIR  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -152,8 +153,6 @@ def test_fuzz_gains_toml(tmp_path, capsys, doc):
 def quick_tune(monkeypatch):
     """``rotorlab tune`` with the optimiser replaced by one evaluation of the start gains: the spec's goals are
     all built and evaluated (where a bad number would bite) in a fraction of a second."""
-    from rotorlab.tune import goals
-
     def once(spec, models, start, **kw):
         return goals.TuneResult(gains=start, report=goals.evaluate(spec, start, models), objective=0.0,
                                 history=[None], starts=[0.0], time_s=0.0)

@@ -6,7 +6,9 @@ with honest 95 % confidence intervals."""
 import control as ct
 import numpy as np
 import pytest
+from scipy.signal import max_len_seq
 
+from rotorlab.ident import periodic_average
 from rotorlab.ident.greybox import GreyBoxModel, Param, oe_fit, oe_fit_closed_loop, simulate_greybox
 from rotorlab.ident.structures import (
     pitch_structure,
@@ -171,9 +173,6 @@ def test_periodic_closed_loop_fit_with_pd_on_angle_and_rate():
     # ref. 002 sec. 4: known PD on angle and rate, a full-length PRBS repeated, the response averaged over ten
     # periods after the first, one periodic steady-state period fitted (means removed: a constant bias is
     # no part of the structure). Noise enters the feedback as on a real IMU.
-    from scipy.signal import max_len_seq
-
-    from rotorlab.ident import periodic_average
 
     dt, kp, kd = 0.004, 0.6, 0.14  # % per deg, % per deg/s
     K = 0.01942 * 180 / np.pi  # deg per % of command, a priori

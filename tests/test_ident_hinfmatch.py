@@ -7,7 +7,7 @@ import pytest
 
 from rotorlab.ident.hinf_match import butterworth_weight, hinf_match
 from rotorlab.ident.model import IdentifiedModel
-from rotorlab.ident.structures import pitch_structure, rigid_rig_structure
+from rotorlab.ident.structures import pitch_structure, rate_tf_structure, rigid_rig_structure
 from rotorlab.lti import c2d_zoh, freqresp
 
 
@@ -42,7 +42,6 @@ def test_hinf_match_recovers_structure_from_its_black_box(make):
 def test_hinf_match_of_mismatched_structure_reports_the_residual_norm():
     # with the gain held 10 % off, the rate form cannot match exactly: the reported norm is the exact
     # weighted peak of the remaining error, which bounds (and is close to) its maximum on a dense grid
-    from rotorlab.ident.structures import rate_tf_structure
 
     truth = rigid_rig_structure()
     wrong = rate_tf_structure(K=1.1 * 12.517, fixed=("K", "delay_s"))

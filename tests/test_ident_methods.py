@@ -11,6 +11,7 @@ from rotorlab.ident.greybox import simulate_greybox
 from rotorlab.ident.methods import METHODS, get_method
 from rotorlab.ident.structures import rate_tf_structure
 from rotorlab.lti import c2d_zoh, freqresp
+from rotorlab.pipeline.stages import identify
 
 PUBLISHED = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])  # P2-A2 test-bed, doc 000, delay 0.06 s
 DT, DELAY = 0.02, 3
@@ -56,6 +57,4 @@ def test_cli_names_the_table_on_an_unknown_method(tmp_path, capsys):
 
 
 def test_the_pipeline_identifies_with_the_table():
-    from rotorlab.pipeline.stages import identify
-
     assert set(identify.OPEN_LOOP_METHODS) <= set(METHODS)

@@ -1,6 +1,8 @@
 """Rerun recordings: read the .rrd back and check entity paths, row counts and values against the run."""
 
 import math
+import shutil
+import types
 
 import mujoco
 import numpy as np
@@ -8,8 +10,11 @@ import pytest
 
 from rotorlab.cli import main
 from rotorlab.errors import ConfigError
+from rotorlab.sim.log import RunLog
+from rotorlab.sim.poses import PoseTrack
 from rotorlab.sim.rerun_log import THRUST_ARROW_M_PER_N, check_rrd_path, record_run
 from rotorlab.sim.runner import run_scenario
+from rotorlab.sim.simulator import Simulator
 
 rr_chunk = pytest.importorskip("rerun.chunk")
 
@@ -114,7 +119,6 @@ def test_cli_run_rerun_and_view(tmp_path, capsys, monkeypatch):
     assert main(["view", str(out), "--print"]) == 0
     assert capsys.readouterr().out.strip().endswith(str(rrd))
     # no viewer on PATH: the command to use is printed
-    import shutil
 
     monkeypatch.setattr(shutil, "which", lambda name: None)
     assert main(["view", str(rrd)]) == 0
@@ -133,11 +137,6 @@ def test_view_makes_a_recording_from_a_plain_run_folder(tmp_path, capsys):
 
 def test_rope_is_recorded_as_a_line_between_its_sites(tmp_path):
     rope_mod = pytest.importorskip("rotorlab.sim.disturbances.rope_pull")
-    import types
-
-    from rotorlab.sim.log import RunLog
-    from rotorlab.sim.poses import PoseTrack
-    from rotorlab.sim.simulator import Simulator
 
     sim = Simulator("pitch-rig", "anteos-p2a2", disturbances=[rope_mod.RopePull(t_pull_s=0.1, ramp_s=0.2)])
     track, log = PoseTrack(sim, 20), RunLog({"theta": "deg"}, 20)

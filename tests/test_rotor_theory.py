@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 from rotorlab import lti
+from rotorlab.config import read_toml
+from rotorlab.errors import ConfigError
 from rotorlab.scenes import PREFIX, build_scene
 from rotorlab.sim.linearize import linearize
-from rotorlab.vehicles import G0, RHO_AIR, load_vehicle
+from rotorlab.vehicles import G0, RHO_AIR, load_vehicle, parse_vehicle, vehicle_path
 from rotorlab.vehicles.calibrate import hub_damping_range
 from rotorlab.vehicles.rotor_theory import hover, thrust_slope_N_per_rad
 
@@ -111,10 +113,6 @@ def test_hub_element_moments(vehicle):
 
 @pytest.mark.parametrize("key, value", [("blades", 2.5), ("solidity", 0.0), ("lock_number", 0.0)])
 def test_hub_without_blade_data_is_a_config_error(key, value):
-    from rotorlab.config import read_toml
-    from rotorlab.errors import ConfigError
-    from rotorlab.vehicles import parse_vehicle, vehicle_path
-
     data = read_toml(vehicle_path("anteos-p2a2"), "vehicle")
     data = {**data, "rotor": {**data["rotor"], key: value}}
     with pytest.raises(ConfigError, match=f"rotor.{key}"):

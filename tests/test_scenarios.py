@@ -6,10 +6,14 @@ import json
 import numpy as np
 import pytest
 
-from rotorlab.errors import ConfigError
+from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.excitation import spectrum_check
 from rotorlab.gains import AxisGains, GainSet, parse_gains
 from rotorlab.sim import scenarios
 from rotorlab.sim.runner import run_scenario
+from rotorlab.sim.scenarios import Context, prbs
+from rotorlab.vehicles import load_vehicle, vehicle_path
+from rotorlab.vehicles.spec import load_vehicle_file
 
 STD = parse_gains({"pitch": {"outer": {"kp": 9.26, "kd": 1.11, "tf": 0.03},
                              "inner": {"kp": 0.257, "ki": 0.643, "kd": 0.0231, "tf": 0.0225}}}, name="standard")
@@ -78,8 +82,6 @@ def test_hover_gain_switch_lowers_high_frequency_command():
 
 
 def test_missing_switch_gains_are_named():
-    from rotorlab.errors import UnknownNameError
-
     with pytest.raises(UnknownNameError):
         run_scenario("hover", "anteos-p2a2", gains=STD, duration_s=1.0, options={"switch_to": "nope"})
 
@@ -102,9 +104,6 @@ def test_prbs_closed_and_flight_run():
 @pytest.mark.parametrize("vehicle, band", [("anteos-p2a2", (4.0, 8.0)), ("anteos-a2minib", (3.0, 7.0))])
 def test_prbs_campaign_is_designed_for_the_vehicle_band(vehicle, band):
     # ref. 000 aimed the PRBS at the dominant attitude dynamics: 4-8 rad/s (P2-A2), 3-7 rad/s (A2-MINI/B)
-    from rotorlab.excitation import spectrum_check
-    from rotorlab.sim.scenarios import Context, prbs
-    from rotorlab.vehicles import load_vehicle
 
     spec = load_vehicle(vehicle)
     assert spec.campaign_band_rad_s == band
@@ -117,9 +116,6 @@ def test_prbs_campaign_is_designed_for_the_vehicle_band(vehicle, band):
 
 
 def test_campaign_table_is_read_strictly(tmp_path):
-    from rotorlab.vehicles import vehicle_path
-    from rotorlab.vehicles.spec import load_vehicle_file
-
     src = vehicle_path("anteos-p2a2").read_text()
     for bad, field in (("band_rad_s = [8.0, 4.0]", "campaign.band_rad_s"), ("band = [4.0, 8.0]", "campaign.band")):
         p = tmp_path / "v.toml"

@@ -10,6 +10,7 @@ import pytest
 
 from rotorlab import lti
 from rotorlab.designs import DESIGNS, design
+from rotorlab.scenes import build_scene
 from rotorlab.sim.linearize import linearize
 from rotorlab.sim.runner import run_scenario
 from rotorlab.vehicles import load_vehicle
@@ -103,6 +104,5 @@ def test_rotor_inertia_gives_the_published_yaw_zero():
     assert np.abs(np.abs(ratio) - 1).max() < 0.03
     assert np.abs(np.angle(ratio, deg=True)).max() < 3.0
     # the ANTEOS twins (fixed RPM) have no spin-up reaction
-    from rotorlab.scenes import build_scene
 
     assert build_scene("pitch-rig", "anteos-p2a2").spinup_actuators.size == 0

@@ -1,13 +1,19 @@
 """Structured H-inf engine against ground truth: full-order hinfsyn, a closed-form static optimum,
 independent closed-loop construction, and clear errors on bad input."""
 
+import importlib
+
 import control as ct
 import numpy as np
 import pytest
 
 from rotorlab import lti
-from rotorlab.tune.blocks import PID, PID2, FixedOrderSS, StaticGain
-from rotorlab.tune.hinfstruct import NotStabilisableError, closed_loop, hinfstruct
+from rotorlab.executor import SerialExecutor
+from rotorlab.tune.blocks import PID, PID2, Block, FixedOrderSS, StaticGain
+from rotorlab.tune.hinfstruct import NotStabilisableError, StabilisationError, closed_loop, hinfstruct
+
+# the module itself: rotorlab.tune re-exports the function hinfstruct under the module's name
+hs = importlib.import_module("rotorlab.tune.hinfstruct")
 
 
 @pytest.mark.parametrize("dt", [0.0, 0.02])
@@ -92,8 +98,6 @@ def test_bad_inputs_give_clear_errors():
 
 @pytest.mark.parametrize("dt", [0.0, 0.02])
 def test_pid_exact_matrix_derivatives_match_central_differences(dt):
-    from rotorlab.tune.blocks import Block
-
     for blk in (PID2(0.35, 1.86, 0.0084, 0.043, b=0.6, c=0.3, dt=dt),
                 PID2(5.46, 0.0, 0.94, 0.038, b=0.9, c=0.0, dt=dt, integral=False),
                 PID(0.3, 1.0, 0.01, 0.05, dt=dt)):
@@ -109,9 +113,7 @@ def test_pid_exact_matrix_derivatives_match_central_differences(dt):
 def test_batched_channel_gradients_match_finite_differences():
     # the batched evaluator (all channels and frequencies in one LFT) against central differences of its
     # own values, on a 2x2 channel (SVD path) and a SISO channel with a 'min' mode (vector path)
-    import importlib
 
-    hs = importlib.import_module("rotorlab.tune.hinfstruct")
     rng = np.random.default_rng(4)
     G = ct.rss(4, 4, 4, strictly_proper=True)
     A = np.asarray(G.A) - (max(0.0, np.max(np.linalg.eigvals(G.A).real)) + 0.5) * np.eye(4)
@@ -155,8 +157,6 @@ def test_stabilisation_phase_finds_a_large_gain_from_zero():
 
 
 def test_not_stabilisable_only_with_a_certificate():
-    from rotorlab.tune.hinfstruct import StabilisationError
-
     # unstable mode at +1 that u cannot reach: the PBH test certifies it
     Pu = ct.ss(np.diag([1.0, -1.0]), [[1.0, 0.0], [0.0, 1.0]], [[1.0, 1.0], [1.0, 1.0]], np.zeros((2, 2)))
     with pytest.raises(NotStabilisableError, match=r"1\+0j: not controllable from u \(PBH rank test\)\. The minimised spectral abscissa .* is 1 "):
@@ -181,8 +181,6 @@ def test_full_order_from_a_random_start_reaches_hinfsyn_on_an_unstable_plant():
 
 
 def test_starts_run_through_the_executor_and_are_scaled():
-    from rotorlab.executor import SerialExecutor
-
     P = _gain22_plant()
     r = hinfstruct(P, "static", 2, 2, starts=3, seed=5, executor=SerialExecutor())
     assert len(r.starts) == 3 and np.all(np.isfinite(r.starts))

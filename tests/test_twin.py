@@ -11,6 +11,7 @@ import pytest
 
 from rotorlab import lti
 from rotorlab.sim.linearize import linearize
+from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.simulator import Simulator
 from rotorlab.vehicles import load_vehicle
 from rotorlab.vehicles.calibrate import closed_form
@@ -190,8 +191,6 @@ def test_hover_keyframe_is_a_trim():
 
 
 def test_thrust_sweep_scenario_recovers_thrust_constant():
-    from rotorlab.sim.runner import run_scenario
-
     v = load_vehicle("tuhh-quad")
     r = run_scenario("thrust-sweep", "tuhh-quad", options={"levels_pct": [30.0, 60.0, 90.0], "hold_s": 0.5})
     assert r.metrics["k_thrust_N_per_rad2_s2"] == pytest.approx(v.rotor.k_thrust, rel=1e-3)
@@ -199,8 +198,6 @@ def test_thrust_sweep_scenario_recovers_thrust_constant():
 
 
 def test_thrust_steps_scenario_recovers_motor_lag():
-    from rotorlab.sim.runner import run_scenario
-
     r = run_scenario("thrust-steps", "tuhh-quad")
     # rotor 1 (pitch pair): 1/26.963 s; the stiff load cell adds a few ms of apparent delay, not lag
     assert r.metrics["time_constant_s"] == pytest.approx(1 / 26.963, rel=0.05)
