@@ -80,7 +80,7 @@ class RigEnv(RotorlabEnv):
     """
 
     _extra_options = ("task", "setpoint_deg")
-    _episode_attrs = ("_k", "_setpoints", "_last_action", "_pid", "_hover_col", "_meas")
+    _episode_attrs = ("_k", "_setpoints", "_last_action", "_pid", "_ctl", "_hover_col", "_meas")
 
     def __init__(self, axis: str = "pitch", vehicle="anteos-p2a2", *, control: str = "command", gains=None,
                  task: str = "tracking", setpoint_max_deg: float = 10.0, setpoint_period_s: float = 2.0,

@@ -127,6 +127,29 @@ def test_save_restore_is_exact(env_id, kw):
     np.testing.assert_array_equal(_rollout(env, acts[20:]), first)
 
 
+@pytest.mark.parametrize("env_id,kw,options", [
+    ("rotorlab/PitchRig-v0", {"control": "controller", "axes": ("pitch",)}, {"setpoint_deg": 25.0}),
+    ("rotorlab/Hover-v0", {"control": "attitude", "axes": ("roll", "pitch")}, {}),
+])
+def test_save_restore_is_exact_with_a_flown_controller(env_id, kw, options):
+    # the flown controller's states (its own and, on the rig, its anti-windup compensator's after the 25 deg
+    # step saturated the command) are part of the snapshot
+    from rotorlab.designs import design
+
+    ctl = design("hinf-loopshaping-aw", "tuhh-quad", axes=kw.pop("axes"))
+    env = _quiet(env_id, vehicle="tuhh-quad", controller=ctl[0] if len(ctl) == 1 else ctl, **kw)
+    env.reset(seed=4, options=options)
+    lo, hi = env.action_space.low, env.action_space.high
+    acts = 0.1 * np.where(np.arange(80)[:, None] % 10 < 5, hi, lo) * np.ones_like(lo)
+    _rollout(env, acts[:23])
+    plugins = [env._ctl] if options else env._fs.plugins
+    assert all(np.any(pl.x != 0) for pl in plugins) and (not options or np.any(plugins[0].x_aw != 0))
+    snap = env.save_state()
+    first = _rollout(env, acts[23:])
+    env.restore_state(snap)
+    np.testing.assert_array_equal(_rollout(env, acts[23:]), first)
+
+
 def test_save_restore_is_exact_through_a_rope_pull():
     rope = pytest.importorskip("rotorlab.sim.disturbances.rope_pull")
     env = _quiet("rotorlab/PitchRig-v0", task="regulation", disturbances=[rope.RopePull(t_pull_s=0.6, ramp_s=0.3)])
