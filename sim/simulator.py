@@ -153,7 +153,7 @@ class Simulator:
     """
 
     #: Python-side state a snapshot must keep besides MuJoCo's full physics state (see the gym envs)
-    python_state_attrs = ("rng", "_noise", "commands_pct", "wind_world", "seed")
+    python_state_attrs = ("rng", "_noise", "commands_pct", "rotor_pct", "wind_world", "seed")
 
     def __init__(self, scene="pitch-rig", vehicle="anteos-p2a2", *, seed: int = 0, control_dt_s: float | None = None,
                  sensor_noise: bool = True, disturbances=()):
@@ -234,6 +234,7 @@ class Simulator:
             bias = self.imu.draw_bias(self.rng) if self.sensor_noise else np.zeros(self.imu.n_noisy)
             self._noise = self.imu.noise(self.rng, bias)
         self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
+        self.rotor_pct = np.asarray(self.mixer.mix(*self.commands_pct))[: len(self._thrust)]
         self.wind_world[:] = 0.0
         self._wind_v[:] = 0.0  # opt.wind lives in the model, which outlives a run
         for dist in self.disturbances:
@@ -256,7 +257,20 @@ class Simulator:
 
     def set_rotor_commands(self, rotor_pct) -> None:
         """Per-rotor commands in %, e.g. from the flight software's mixer or a thrust-stand test."""
-        set_rotor_ctrl(self._ctrl_v, rotor_pct, self.vehicle, self._thrust, self._spinup)
+        rotor = np.asarray(rotor_pct, dtype=float)[: len(self._thrust)]
+        self.rotor_pct = rotor
+        set_rotor_ctrl(self._ctrl_v, rotor, self.vehicle, self._thrust, self._spinup)
+
+    def add_axis_input(self, commands_pct) -> None:
+        """Add axis commands ``[collective, roll, pitch, yaw]`` (%) to this tick's rotor commands at the
+        actuators: an input disturbance at the plant input (ref. 002 fig. 4a), after the flight software's
+        saturation and mixer, so it reaches the airframe through the motors' delay and lag like any command.
+        The motors' own range (the mixer's per-rotor limits) clips the sum. Cleared by the next
+        :meth:`set_rotor_commands`."""
+        mx = self.mixer
+        extra = np.asarray(mx.mix(*commands_pct, clip=False))[: len(self._thrust)]
+        self.rotor_pct = np.clip(self.rotor_pct + extra, mx.out_min, mx.out_max)
+        set_rotor_ctrl(self._ctrl_v, self.rotor_pct, self.vehicle, self._thrust, self._spinup)
 
     # ------------------------------------------------------------------ stepping
     def tick(self) -> None:

@@ -20,6 +20,7 @@ from rotorlab.sim.disturbances.recirculation_moment import RecirculationMoment
 from rotorlab.sim.disturbances.rope_pull import RopePull
 from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.simulator import Simulator, _stable_hash
+from rotorlab.vehicles import load_vehicle
 
 STD = parse_gains({"pitch": {"outer": {"kp": 9.26, "kd": 1.11, "tf": 0.03},
                              "inner": {"kp": 0.257, "ki": 0.643, "kd": 0.0231, "tf": 0.0225}}}, name="standard")
@@ -126,6 +127,27 @@ def test_registry_holds_every_disturbance_in_a_file_named_after_it():
     assert all(cls.name == name for name, cls in DISTURBANCES.items())
     assert set(pkg.__all__) >= {cls.__name__ for cls in defined}
     assert set(_EXAMPLES) == set(DISTURBANCES)
+
+
+def test_input_disturbance_is_a_command_at_the_plant_input():
+    # ref. 002 fig. 4a adds d to the controller output before the plant: 10 % of full command reaches the
+    # airframe through the rotors' delay and lag exactly as a 10 % pitch command does, and not before the delay
+    v = load_vehicle("tuhh-quad")
+    dist = Simulator("pitch-rig", v, sensor_noise=False, disturbances=[InputDisturbanceStep(0.1, t_s=0.0)])
+    cmd = Simulator("pitch-rig", v, sensor_noise=False)
+    quiet = Simulator("pitch-rig", v, sensor_noise=False)
+    hover = [v.hover_collective_pct, 0.0, 0.0, 0.0]
+    before = int(v.rotor.delay_s[0] / v.control_dt_s)  # ticks within the pitch rotors' transport delay
+    for k in range(40):
+        dist.set_commands(hover)
+        cmd.set_commands([v.hover_collective_pct, 0.0, 10.0, 0.0])
+        quiet.set_commands(hover)
+        for s in (dist, cmd, quiet):
+            s.tick()
+        np.testing.assert_allclose(dist.data.qvel, cmd.data.qvel, rtol=1e-12, atol=1e-12)
+        if k < before:
+            np.testing.assert_array_equal(dist.data.qvel, quiet.data.qvel)
+    assert abs(dist.data.qvel).max() > 0.1
 
 
 @pytest.mark.parametrize("name", sorted(DISTURBANCES))

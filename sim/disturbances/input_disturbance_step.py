@@ -1,12 +1,13 @@
-"""Input-disturbance step on a rig: a constant moment equal to a fraction of the axis command's authority.
+"""Input-disturbance step on a rig: a constant offset of a fraction of the full axis command at the plant input.
 
-Ref. 002 (figs. 6 and 8) injects "an input disturbance equivalent to 10 % (30 %) of maximum engine thrust".
-We read it, as ``rotorlab.tune.loopshaping`` does, as ``d = fraction`` of the full differential motor command
-at the plant input, i.e. the moment a ``100 * fraction`` % axis command would produce at hover (the twin's
-linear torque gain: ``arm * dT/d% `` per % with each rotor of the pair taking half the command). It acts as a
-moment on the airframe about the rig axis (a weight hung on the arm), written into ``xfrc_applied`` every
-tick, so it bypasses the motor lag and delay: the controller's saturation at the command limit (40 % on
-the TUHH twin) still leaves ``40 - 100 * fraction`` % of authority against it, as in the paper's experiment.
+Ref. 002 (figs. 4a, 6 and 8) injects "an input disturbance equivalent to 10 % (30 %) of maximum engine thrust":
+its generalized plant adds ``d`` to the controller output ``u`` before the plant ``G`` (motor, delay, inertia,
+eq. 13), and the 30 % test "saturat[es] the engines". We read it, as ``rotorlab.tune.loopshaping`` does, as
+``d = fraction`` of the full differential motor command added to the rotor commands after the flight software's
+saturation and mixer (:meth:`~rotorlab.sim.simulator.Simulator.add_axis_input`): the disturbance reaches the
+airframe through the motors' transport delay and lag exactly like a command, and the motors' own range clips
+the sum. The controller's saturation at the command limit (40 % on the TUHH twin) leaves ``40 - 100 fraction``
+% of authority against it; its anti-windup compensator sees only its own saturation, as on the rig.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ def axis_torque_per_pct(vehicle) -> float:
 
 
 class InputDisturbanceStep(Disturbance):
-    """Step moment of ``fraction`` of full command from ``t_s`` on (for ``hold_s``, default to the end).
+    """Step of ``fraction`` of full command at the plant input from ``t_s`` on (for ``hold_s``, default to the
+    end); ``d_moment`` logs its nominal (linearised, steady) moment.
 
     Parameters
     ----------
@@ -52,8 +54,8 @@ class InputDisturbanceStep(Disturbance):
         self.t_end_s = np.inf if hold_s is None else self.t_s + float(hold_s)
 
     def reset(self, sim, rng) -> None:
-        self._axis = np.asarray(RIG_AXES[sim.scene.name][1], dtype=float)
-        self._body = sim._airframe
+        # [collective, roll, pitch, yaw] slot of the rig's axis
+        self._slot = ("roll", "pitch").index(RIG_AXES[sim.scene.name][0]) + 1
         self._moment_per_pct = axis_torque_per_pct(sim.vehicle)
 
     def input_pct(self, t: float) -> float:
@@ -63,7 +65,9 @@ class InputDisturbanceStep(Disturbance):
     def update(self, sim, t: float) -> None:
         d = self.input_pct(t)
         if d:
-            sim.data.xfrc_applied[self._body, 3:6] += d * self._moment_per_pct * self._axis
+            cmd = [0.0, 0.0, 0.0, 0.0]
+            cmd[self._slot] = d
+            sim.add_axis_input(cmd)
 
     def values(self, sim) -> dict:
         d = self.input_pct(sim.time)

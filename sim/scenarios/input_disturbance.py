@@ -1,6 +1,7 @@
 """``input-disturbance``: a step input disturbance on the rig with a null set-point (ref. 002 figs. 6 and 8).
 
-The moment of ``fraction`` of the full differential command acts on the airframe from ``t0_s`` on
+``fraction`` of the full differential command is added at the plant input (the rotor commands, upstream of the
+motors' delay and lag) from ``t0_s`` on
 (:class:`~rotorlab.sim.disturbances.input_disturbance_step.InputDisturbanceStep`). 10 % is the paper's linear test
 (H-inf about 4 deg against 15 deg for the modified PID); 30 % saturates the TUHH twin's 40 % command limit (the
 anti-windup test: unstable without the compensator, recovered with it).
