@@ -394,7 +394,7 @@ def _jacobian(fun, z, lo, hi, step: float = 1e-4) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def _covariance(Jm, r, N, p, dof, method, name, free) -> np.ndarray:
+def _covariance(Jm, r, N, p, dof, method, name, free, rep_dev=None) -> np.ndarray:
     """Covariance of the (scaled) parameters at the least-squares optimum.
 
     ``'white'``: the classic ``sigma^2 (J^T J)^-1`` for white residuals. ``'hac'``: the sandwich
@@ -403,6 +403,11 @@ def _covariance(Jm, r, N, p, dof, method, name, free) -> np.ndarray:
     measurement noise fed back through the loop). Bandwidth ``sqrt(N)`` lags: it must grow with ``N`` for
     consistency and cover the loop's correlation time (a few closed-loop time constants); rules read off
     the residual autocorrelation proved erratic on such high-pass residuals.
+    ``'periods'``: ``rep_dev`` (n, N * p) holds each replicate's weighted deviation from the averaged data;
+    the Gauss-Newton step each replicate alone would take from the optimum, ``-H^-1 J^T dev_i``, is its
+    own estimate to first order, and the covariance of their mean is their sample covariance over ``n``.
+    The deviations hold the noise only: a misfit of the structure is common to every period and cancels,
+    so the interval is honest for any noise colour within a period and says nothing about model error.
     """
     U, sv, Vt = np.linalg.svd(Jm, full_matrices=False)
     # the Jacobian comes from finite differences (relative error ~ sqrt(eps)), so a direction whose singular
@@ -416,10 +421,13 @@ def _covariance(Jm, r, N, p, dof, method, name, free) -> np.ndarray:
                       f"direction {names} leaves the output unchanged -- fix one of them", stacklevel=4)
         return np.full((len(free),) * 2, np.inf)
     Hinv = (Vt.T / sv**2) @ Vt
+    if method == "periods":
+        steps = -(rep_dev @ Jm) @ Hinv
+        return np.atleast_2d(np.cov(steps, rowvar=False, ddof=1)) / steps.shape[0]
     if method == "white":
         return float(r @ r) / dof * Hinv
     if method != "hac":
-        raise ValueError(f"cov must be 'white' or 'hac', got {method!r}")
+        raise ValueError(f"cov must be 'white', 'hac' or 'periods', got {method!r}")
     e = r.reshape(N, p)
     scores = np.einsum("kjn,kj->kn", Jm.reshape(N, p, -1), e)
     L = int(np.sqrt(N))
@@ -431,7 +439,8 @@ def _covariance(Jm, r, N, p, dof, method, name, free) -> np.ndarray:
 
 
 def _fit(model: GreyBoxModel, y: np.ndarray, dt: float, simulate, theta0, estimate_x0: bool, nx: int,
-         restarts: int, rng, max_nfev, progress: bool, cov_method: str) -> GreyBoxResult:
+         restarts: int, rng, max_nfev, progress: bool, cov_method: str, replicates=None,
+         reweight: bool = True) -> GreyBoxResult:
     free = model.free
     if not free:
         raise ValueError(f"grey-box model '{model.name}': every parameter is fixed, nothing to estimate")
@@ -462,6 +471,10 @@ def _fit(model: GreyBoxModel, y: np.ndarray, dt: float, simulate, theta0, estima
         r = (e * w).ravel()
         if not np.all(np.isfinite(r)):
             r = np.full_like(r, 1e6)
+        elif np.abs(r).max() > 1e10:
+            # a start that makes the simulated loop diverge: finite residuals near 1e300 overflow the
+            # optimiser's squares into NaN; a plateau sends it back like a non-finite one
+            r = np.full_like(r, 1e10)
         return (r, x0) if want_x0 else r
 
     starts = [x_init / scale]
@@ -481,7 +494,7 @@ def _fit(model: GreyBoxModel, y: np.ndarray, dt: float, simulate, theta0, estima
                                 x_scale="jac", max_nfev=max_nfev)
         if best is None or sol.cost < best.cost:
             best = sol
-    if p > 1:
+    if p > 1 and reweight:
         # unknown noise variance per output: the ML estimate weights each output by its residual
         # standard deviation, so re-weight once and polish from the best start
         e = residual(best.x).reshape(N, p) / w
@@ -491,10 +504,11 @@ def _fit(model: GreyBoxModel, y: np.ndarray, dt: float, simulate, theta0, estima
     r, x0 = residual(best.x, want_x0=True)
     th = theta_of(best.x)
     dof = max(N * p - len(free) - (nx if estimate_x0 else 0), 1)
+    rep_dev = None if replicates is None else ((replicates - y[None]) * w).reshape(len(replicates), -1)
     cov = _covariance(_jacobian(residual, best.x, lo / scale, hi / scale), r, N, p, dof, cov_method, model.name,
-                      free) * np.outer(scale, scale)
+                      free, rep_dev) * np.outer(scale, scale)
     std = np.sqrt(np.diag(cov))
-    tq = st.t.ppf(0.975, dof)
+    tq = st.t.ppf(0.975, dof if replicates is None else len(replicates) - 1)
     ci = {n: (th[n] - tq * s, th[n] + tq * s) for n, s in zip(free, std)}
     at_bound = [n for n, v, a, b in zip(free, best.x * scale, lo, hi)
                 if np.isclose(v, a, rtol=1e-6, atol=0) or np.isclose(v, b, rtol=1e-6, atol=0)]
@@ -557,7 +571,8 @@ def oe_fit(model: GreyBoxModel, u, y, dt: float, theta0: Mapping[str, float] | N
 def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
                        theta0: Mapping[str, float] | None = None, *, feedback_output: int = 0,
                        estimate_x0: bool = False, restarts: int = 0, rng=None, max_nfev: int | None = None,
-                       cov: str = "hac", progress: bool = False, periods: int = 0) -> GreyBoxResult:
+                       cov: str = "hac", progress: bool = False, periods: int = 0,
+                       replicates=None, reweight: bool = True) -> GreyBoxResult:
     """Indirect closed-loop output-error fit: the plant is estimated through the known closed loop.
 
     The loop ``u = C (r - y_fb)`` (or ``u = C [r; y_fb]`` for a two-input controller such as
@@ -587,10 +602,20 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
         measured and simulated outputs each with its mean removed (constant sensor biases and trims are not
         part of the structure). ``periods`` must let the start-up transient die out.
 
-    cov : {'hac', 'white'}
+    cov : {'hac', 'white', 'periods'}
         Default ``'hac'``: the residual of an indirect closed-loop fit is the measurement noise filtered
         by the sensitivity function, so it is coloured and ``sigma^2 (J^T J)^-1`` would understate the
-        spread (with white-noise data, ``'white'`` is exact).
+        spread (with white-noise data, ``'white'`` is exact). ``'periods'`` (with ``replicates``): the
+        period-to-period spread of a periodic experiment (see :func:`_covariance`); its intervals use
+        Student's t with ``n - 1`` degrees of freedom. The residual-based covariances count a misfit of the
+        structure as noise; this one does not.
+    replicates : array_like, (n, N) or (n, N, p), optional
+        With ``periods``: the single periods whose average is ``y`` (TUHH's ten), for ``cov='periods'``.
+    reweight : bool
+        Several outputs are weighted by ``1/std`` of each measured output; ``True`` (default) then re-weights
+        once by the residual standard deviations (ML with unknown noise variances). With a structure that
+        cannot fit exactly, the weights decide which value the estimate converges to; ``False`` keeps the
+        signal weights, so fits of noisy and noise-free data of one experiment aim at the same value.
 
     Other parameters are as in :func:`oe_fit`. With ``estimate_x0`` the initial plant state is estimated
     (the controller starts at rest).
@@ -606,6 +631,14 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
         raise ValueError(f"r has {len(r2)} samples, y has {len(y2)}")
     K = _controller_d(controller, dt)
     nx = model.ss().nstates
+    if (cov == "periods") != (replicates is not None) or (replicates is not None and not periods):
+        raise ValueError("cov='periods' takes the replicates of a periodic experiment (periods > 0), and only it")
+    if replicates is not None:
+        rep = np.asarray(replicates, dtype=float)
+        rep = rep.reshape(rep.shape[:2] + (-1,))
+        if rep.shape[1:] != y2.shape or rep.shape[0] < 2:
+            raise ValueError(f"replicates must be at least two periods shaped like y {y2.shape}; got {rep.shape}")
+        replicates = rep - rep.mean(axis=1, keepdims=True)
     if periods:
         if estimate_x0:
             raise ValueError("a periodic steady-state fit has no initial state to estimate (estimate_x0=False)")
@@ -621,7 +654,8 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
             cl = _closed_loop(model.discretize(dt, th), K, feedback_output)
             return _lsim(cl, r2), (_free_response_basis(cl, nx, len(r2)) if estimate_x0 else None)
 
-    return _fit(model, y2, dt, simulate, theta0, estimate_x0, nx, restarts, rng, max_nfev, progress, cov)
+    return _fit(model, y2, dt, simulate, theta0, estimate_x0, nx, restarts, rng, max_nfev, progress, cov,
+                replicates, reweight)
 
 
 def periodic_average(x, period: int, skip: int = 1):

@@ -205,3 +205,56 @@ def test_periodic_closed_loop_fit_with_pd_on_angle_and_rate():
         periodic_average(np.zeros(10), 6, skip=1)
     with pytest.raises(ValueError, match="initial state"):
         oe_fit_closed_loop(truth, ctl, r1, avg, dt, feedback_output=(0, 1), periods=2, estimate_x0=True)
+
+
+def test_period_to_period_interval_matches_the_spread_over_seeds():
+    # cov='periods': each averaged period is a replicate of the experiment; the standard error from their
+    # spread matches the estimates' spread over independent experiments (coloured closed-loop noise, gyro bias)
+    # and the intervals cover the truth at about their level; a structure's misfit, common to every period,
+    # does not enter it
+    from scipy.signal import max_len_seq
+
+    dt, kp, kd = 0.004, 0.6, 0.14
+    K = 0.01942 * 180 / np.pi
+    truth = tuhh_axis_structure("pitch", outputs=("angle", "rate"), K=K)
+    tv = truth.values()
+    P = truth.discretize(dt)
+    A, B, Cm = (np.asarray(M, float) for M in (P.A, P.B, P.C))
+    r1 = np.repeat(max_len_seq(5)[0] * 2.0 - 1.0, 10) * 3.0
+    n, periods = r1.size, 11
+    ctl = ct.ss([], [], [], [[kp, -kp, -kd]], dt)
+    est, std, covered = [], [], 0
+    for seed in range(12):
+        rng = np.random.default_rng(seed)
+        x = np.zeros(A.shape[0])
+        bias = np.array([0.0, rng.normal(0.0, 0.3)])
+        Y = np.empty((n * periods, 2))
+        for k in range(n * periods):
+            y = Cm @ x + bias + rng.standard_normal(2) * (0.05, 0.5)
+            x = A @ x + B[:, 0] * (kp * (r1[k % n] - y[0]) - kd * y[1])
+            Y[k] = y
+        reps = Y[n:].reshape(periods - 1, n, 2)
+        res = oe_fit_closed_loop(truth.with_values(tv), ctl, r1, reps.mean(axis=0), dt, feedback_output=(0, 1),
+                                 periods=2, cov="periods", replicates=reps, reweight=False)
+        est.append([res.params[k] for k in ("J", "p", "Td")])
+        std.append([res.std[k] for k in ("J", "p", "Td")])
+        covered += sum(res.covers(tv).values())
+    ratio = np.mean(std, axis=0) / np.std(est, axis=0, ddof=1)
+    assert np.all((ratio > 0.6) & (ratio < 1.6)), ratio
+    assert covered >= 30  # of 36 intervals (nominal 34)
+    # noise-free periods of data the structure cannot fit (a gyro reading 10 % high): the residual-based interval
+    # counts the misfit as noise, the period-to-period one has no spread to count
+    Yn = np.empty((n * 20, 2))
+    x = np.zeros(A.shape[0])
+    for k in range(n * 20):
+        y = (Cm @ x) * (1.0, 1.1)
+        x = A @ x + B[:, 0] * (kp * (r1[k % n] - y[0]) - kd * y[1])
+        Yn[k] = y
+    reps = Yn[10 * n:].reshape(10, n, 2)  # the start-up transient long gone
+    kw = dict(feedback_output=(0, 1), periods=2, theta0=tv, reweight=False)
+    misfit = oe_fit_closed_loop(truth, ctl, r1, reps.mean(axis=0), dt, cov="periods", replicates=reps, **kw)
+    hac = oe_fit_closed_loop(truth, ctl, r1, reps.mean(axis=0), dt, **kw)
+    for k in ("J", "p", "Td"):
+        assert misfit.std[k] < 1e-6 * hac.std[k], (k, misfit.std, hac.std)
+    with pytest.raises(ValueError, match="replicates"):
+        oe_fit_closed_loop(truth, ctl, r1, reps.mean(axis=0), dt, feedback_output=(0, 1), periods=2, cov="periods")
