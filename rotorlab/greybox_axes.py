@@ -108,11 +108,13 @@ def truth(vehicle, axis: str, options: dict | None = None) -> dict:
     if key not in _TRUTH:
         fit = _fit_experiment(v, axis, seed=0, periods=3, restarts=0, options=dict(options or {}), sensor_noise=False,
                               theta0=physical(v, axis))
+        if isinstance(fit, str):
+            raise RuntimeError(f"the noise-free {axis} experiment that defines the truth stopped: {fit}")
         _TRUTH[key] = {**physical(v, axis), **fit.params_free}
     return dict(_TRUTH[key])
 
 
-#: noise-free fits are deterministic (no noise, no bias, no seed): one per vehicle file, axis and options
+#: noise-free fits are deterministic (no noise, no bias, no seed): one per vehicle spec, axis and options
 _TRUTH: dict = {}
 
 
