@@ -12,6 +12,7 @@ import pytest  # noqa: E402
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 import rotorlab  # noqa: E402,F401  (registers the envs)
+from rotorlab.designs import design  # noqa: E402
 from rotorlab.errors import UnknownNameError  # noqa: E402
 from rotorlab.sim.disturbances.base import Disturbance  # noqa: E402
 from rotorlab.sim.env_baselines import HoverPIDPolicy, RigPIDPolicy, episode_return  # noqa: E402
@@ -134,8 +135,6 @@ def test_save_restore_is_exact(env_id, kw):
 def test_save_restore_is_exact_with_a_flown_controller(env_id, kw, options):
     # the flown controller's states (its own and, on the rig, its anti-windup compensator's after the 25 deg
     # step saturated the command) are part of the snapshot
-    from rotorlab.designs import design
-
     ctl = design("hinf-loopshaping-aw", "tuhh-quad", axes=kw.pop("axes"))
     env = _quiet(env_id, vehicle="tuhh-quad", controller=ctl[0] if len(ctl) == 1 else ctl, **kw)
     env.reset(seed=4, options=options)

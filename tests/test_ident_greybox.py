@@ -212,8 +212,6 @@ def test_period_to_period_interval_matches_the_spread_over_seeds():
     # spread matches the estimates' spread over independent experiments (coloured closed-loop noise, gyro bias)
     # and the intervals cover the truth at about their level; a structure's misfit, common to every period,
     # does not enter it
-    from scipy.signal import max_len_seq
-
     dt, kp, kd = 0.004, 0.6, 0.14
     K = 0.01942 * 180 / np.pi
     truth = tuhh_axis_structure("pitch", outputs=("angle", "rate"), K=K)
