@@ -97,6 +97,8 @@ def test_flight_software_of_many_simulations_names_what_it_does_not_fly(vehicle)
     meas = {c: np.zeros(2) for c in ("phi", "theta", "psi", "p", "q", "r")}
     with pytest.raises(ConfigError, match="altitude"):
         fs.step(0.0, meas)
+    with pytest.raises(ConfigError, match="keeps the mode"):
+        fs.set_mode("open-loop")
 
 
 # ---------------------------------------------------------------- whole runs against run_scenario

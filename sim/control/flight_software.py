@@ -159,6 +159,10 @@ class FlightSoftware:
         """Change mode; loops that close at the next tick start bumplessly from the last commands."""
         if mode not in MODES:
             raise UnknownNameError("mode", mode, MODES)
+        if self.n is not None and hasattr(self, "mode"):
+            # the vector loops have no bumpless start
+            raise ConfigError("the flight software of many simulations keeps the mode it was built with",
+                              field="mode", expected=self.mode, got=mode)
         self.mode = mode
         self._engage = True
 
