@@ -127,6 +127,20 @@ def test_h_lim_flags_a_controller_independent_dc_bound():
         mag = np.abs(lti.freqresp(W * V, w)[:, 0, 0])
         assert not r.low_frequency_bound and r.h_lim == pytest.approx(1 / mag.max(), rel=1e-6)
         assert r.peak_rad_s == pytest.approx(w[mag.argmax()], rel=0.02) and r.dc_ratio < 0.5
+    # W vanishing at DC with a bump at 0.01-0.05 rad/s: the peak is not at DC (dc_ratio 0), but there |S| =
+    # |s/(s+k)| <= 0.04, V = -(1 - S)/G and h_lim = |G|/|W| there to within 4 %, whatever k: still flagged
+    vals = []
+    for k in (0.5, 2.0):
+        G, V, _ = _pi_loop(k, 1.0)
+        W = ct.tf([0.1 / 0.01, 0], [1 / 0.01, 1]) * ct.tf(1, [1 / 0.05, 1])
+        r = h_lim_analysis(W, V, G)
+        assert r.dc_ratio < 1e-6 and 0.005 < r.peak_rad_s < 0.05 and r.sensitivity_at_peak < 0.05
+        assert r.low_frequency_bound and "controller-independent" in r.note()
+        vals.append(r.h_lim)
+    assert vals[0] == pytest.approx(vals[1], rel=0.05)
+    # ... and not where the loop gain is low: the band-pass case above has |S| near 1 at its peak
+    G, V, _ = _pi_loop(2.0, 1.0)
+    assert h_lim_analysis(ct.tf([0.5, 0], [1, 1.8, 9]), V, G).sensitivity_at_peak > 0.5
     # without integral action V(0) != -1/G(0)
     G = ct.tf(1, [1, 1])
     assert h_lim_analysis(ct.tf(0.1, 1), control_sensitivity(G, ct.tf(2.0, 1)), G).v_dc_is_minus_inv_g is False
