@@ -41,3 +41,14 @@ def test_a2minib_claims_hold_on_the_twin(summary):
     assert held["reduced settling time, less oscillation on the set-point"] is True
     assert held["in-flight switch: high-frequency command oscillation lowered"] is True
     assert held["rope pull: overshoot and oscillation after the release eliminated"] is True
+
+
+def test_a2minib_h_lim_tells_the_gain_sets_apart(summary):
+    """Issue 12 on the A2-MINI/B: h_lim differs between the gain sets (once 11.138 for every set); the worst-case
+    all-pass just above it destabilises each set and random Deltas at 1.5 h_lim find unstable loops."""
+    h = summary["h_lim"]
+    assert set(h) == {"standard", "optimal", "tuned"}
+    assert max(h.values()) >= 1.05 * min(h.values())
+    for name, m in summary["montecarlo"].items():
+        assert m["worst_case"]["unstable"], name
+        assert m["levels"]["1"]["fraction_unstable"] == 0.0 and m["levels"]["1.5"]["fraction_unstable"] > 0.0, name
