@@ -162,7 +162,8 @@ class RunFolder:
         return load_model(self.model_path("truth"))[0]
 
     def w_delta_path(self, which: str = "testbed") -> Path:
-        """``W_delta`` of the test-bed model (``which='testbed'``) or of the in-flight model (``'flight'``)."""
+        """``W_delta`` of the test-bed model (``which='testbed'``), of the in-flight model (``'flight'``) or of the
+        second-order test-bed model paired with it (``'testbed-n2'``)."""
         return self.stage_dir("bootstrap") / ("w_delta.json" if which == "testbed" else f"w_delta-{which}.json")
 
     def w_delta(self, which: str = "testbed"):

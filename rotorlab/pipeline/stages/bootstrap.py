@@ -1,6 +1,7 @@
 """Stage 3, bootstrap: parametric bootstrap of the PBSID model and the additive-uncertainty weight
 ``W_delta`` bounding its spread (ref. 000); the same for the in-flight PBSID model when the campaign has a
-flight run, so the in-flight h_lim uses the flight model's own uncertainty."""
+flight run, so the in-flight h_lim uses the flight model's own uncertainty, and for the second-order test-bed
+PBSID model it is compared with (ref. 000 pairs the two second-order models)."""
 
 from __future__ import annotations
 
@@ -47,7 +48,8 @@ def run(ctx: StageContext) -> dict:
     w = bode_grid(N_BODE)
     W = fit_wdelta(br.nominal.sys, [m.sys for m in br.models], w, order=W_DELTA_ORDER)
     save_model(ctx.work / "w_delta.json", W, input=["delta"], output=["q"])
-    flight = _flight(ctx, w)
+    flight = _own(ctx, w, "pbsid-flight", "flight", "flight", 1)
+    pair = _own(ctx, w, "pbsid-testbed-n2", "id", "testbed-n2", 2)
     band = br.band(w, BAND_LEVEL)
     stack = {k: np.stack([np.asarray(getattr(m.sys, k), float) for m in br.models]) for k in "ABCD"}
     np.savez(ctx.work / "replicas.npz", w_rad_s=w, mag_lo=band["mag_lo"][:, 0, 0], mag_hi=band["mag_hi"][:, 0, 0],
@@ -59,26 +61,28 @@ def run(ctx: StageContext) -> dict:
             "w_delta_order": int(W.nstates), "w_delta_peak": float(Wmag.max()), "w_delta_dc": float(Wmag[0]),
             "poles_c_median": [[float(z.real), float(z.imag)] for z in np.median(br.poles_continuous().real, 0)
                                + 1j * np.median(np.abs(br.poles_continuous().imag), 0)],
-            **({"flight": flight} if flight else {})}
+            **({"flight": flight} if flight else {}), **({"testbed_n2": pair} if pair else {})}
 
 
-def _flight(ctx: StageContext, w) -> dict | None:
-    """Bootstrap of the in-flight PBSID model on the flight record, with the settings it was identified
-    with (ref. 000 gives in-flight h_lim from the flight model's uncertainty, not the test-bed's)."""
-    if not ctx.run.model_path("pbsid-flight").exists() or not ctx.run.experiment_log_path("flight").exists():
+def _own(ctx: StageContext, w, model: str, log_name: str, which: str, stream: int) -> dict | None:
+    """Bootstrap of a further PBSID model of the identify stage on its own record, with the settings it was
+    identified with, and its ``W_delta`` (``w_delta-{which}.json``): the in-flight model on the flight record
+    (ref. 000 gives in-flight h_lim from the flight model's uncertainty, not the test-bed's) and the second-order
+    test-bed model it is paired with. None when the identify stage has no such model."""
+    if not ctx.run.model_path(model).exists() or not ctx.run.experiment_log_path(log_name).exists():
         return None
-    st = ctx.run.identified("pbsid-flight").settings
-    log = ctx.run.experiment_log("flight")
-    # an independent seed: the flight bootstrap's innovations share nothing with the test-bed's
+    st = ctx.run.identified(model).settings
+    log = ctx.run.experiment_log(log_name)
+    # an independent seed stream: these innovations share nothing with the nominal bootstrap's
     br = bootstrap(log["u_lon"], log["q"], _identify(st), n_boot=ctx.settings["n_boot"],
-                   seed=int(np.random.SeedSequence([ctx.seed, 1]).generate_state(1)[0]), n_jobs=ctx.executor.workers,
-                   mapper=ctx.mapper("flight bootstrap"))
+                   seed=int(np.random.SeedSequence([ctx.seed, stream]).generate_state(1)[0]),
+                   n_jobs=ctx.executor.workers, mapper=ctx.mapper(f"{which} bootstrap"))
     W = fit_wdelta(br.nominal.sys, [m.sys for m in br.models], w, order=W_DELTA_ORDER)
-    save_model(ctx.work / "w_delta-flight.json", W, input=["delta"], output=["q"])
+    save_model(ctx.work / f"w_delta-{which}.json", W, input=["delta"], output=["q"])
     Wmag = np.abs(freqresp(W, w)[:, 0, 0])
     spread = additive_spread(br.nominal.sys, [m.sys for m in br.models], w)
-    np.savez(ctx.work / "replicas-flight.npz", w_rad_s=w, spread=spread)
-    return {"model": "pbsid-flight", "order": int(st["order"]), "w_delta_peak": float(Wmag.max()),
+    np.savez(ctx.work / f"replicas-{which}.npz", w_rad_s=w, spread=spread)
+    return {"model": model, "order": int(st["order"]), "w_delta_peak": float(Wmag.max()),
             "w_delta_dc": float(Wmag[0])}
 
 

@@ -343,6 +343,7 @@ def write_report(ctx: StageContext) -> dict:
         "h_lim": tune["h_lim"], "h_lim_peak_rad_s": tune.get("h_lim_peak_rad_s", {}),
         "h_lim_low_frequency_bound": tune.get("h_lim_low_frequency_bound", {}), "step": tune["step"],
         "h_lim_flight": tune.get("h_lim_flight", {}), "h_lim_flight_peak_rad_s": tune.get("h_lim_flight_peak_rad_s", {}),
+        "h_lim_testbed_n2": tune.get("h_lim_testbed_n2", {}),
         "montecarlo": tune["montecarlo"],
         "transfer": tune.get("transfer", {}), "validation": validation, "compared_set": tuned,
         "comparison": compare_sets(validation, "standard", tuned) if tuned else {},
@@ -616,6 +617,14 @@ def _markdown(s: dict) -> str:
             f"in flight, {_f(pk.get(n), '{:.3g}')} rad/s on the test-bed)" for n in above) +
             ". Above the campaign band the second-order flight model's replicas cannot differ beyond its fixed "
             "roll-off, so its W_delta there is below the test-bed model's, whose extra poles carry that uncertainty."]
+    n2, hf = s.get("h_lim_testbed_n2", {}), s.get("h_lim_flight", {})
+    if n2 and hf:
+        pairs = [n for n in hf if hf[n] is not None and n2.get(n) is not None]
+        below = [n for n in pairs if hf[n] < n2[n]]
+        L += ["", "Test-bed against flight like for like (ref. 000 compares the two second-order PBSID models): h_lim "
+                  "on the second-order test-bed model with its own W_delta " +
+              ", ".join(f"{n} {_f(n2.get(n), '{:.3g}')}" for n in n2) +
+              f"; the in-flight value is below it for {len(below)} of {len(pairs)} gain sets."]
     levels = _mc_levels(s)
     L += ["", "Monte Carlo: random stable Delta of peak gain scale x h_lim (the small-gain theorem guarantees "
               "stability up to 1 x); draws with a closed-loop pole within 1e-6 of the unit circle are marginal, "

@@ -104,6 +104,7 @@ def run(ctx: StageContext) -> dict:
                                    "worst_case": _worst_case(G_mc, W, V, builder, hl.h_lim)}
     np.savez(ctx.work / "montecarlo.npz", **mc_arrays)
     res["transfer"], res["h_lim_flight"], res["h_lim_flight_peak_rad_s"] = _transfer(ctx, sets, nominal)
+    res["h_lim_testbed_n2"] = _h_lim_testbed_n2(ctx, sets)
     return res
 
 
@@ -147,6 +148,23 @@ def _transfer(ctx: StageContext, sets, nominal):
             hl[name], peak[name] = None, None
             transfer[name]["flight_loop"] = str(exc)
     return transfer, hl, peak
+
+
+def _h_lim_testbed_n2(ctx: StageContext, sets) -> dict:
+    """h_lim on the second-order test-bed PBSID model with its own bootstrap ``W_delta``: the test-bed side of
+    ref. 000's test-bed/flight comparison, which pairs two second-order models (the pair whose nu-gap is 0.0741).
+    The nominal model's h_lim can be set above the campaign band by high-frequency modes a second-order flight
+    model cannot carry, so the in-flight value is compared like with like here. Empty without that model."""
+    if not ctx.run.model_path("pbsid-testbed-n2").exists() or not ctx.run.w_delta_path("testbed-n2").exists():
+        return {}
+    tb, W2 = ctx.run.plant("pbsid-testbed-n2", "testbed-n2"), ctx.run.w_delta("testbed-n2")
+    out = {}
+    for name, gs in sets.items():
+        try:
+            out[name] = h_lim_analysis(W2, control_sensitivity_cascade(tb, gs["pitch"], DT_S), tb.G).h_lim
+        except DataError:  # the set does not stabilise this model: no robustness to speak of
+            out[name] = None
+    return out
 
 
 def _tuhh_designs(nominal, std_axis) -> dict:
