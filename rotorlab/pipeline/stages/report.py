@@ -612,7 +612,10 @@ def _markdown(s: dict) -> str:
     above = [n for n, v in s.get("h_lim_flight", {}).items() if v is not None and v > s["h_lim"].get(n, math.inf)]
     if above:
         pk, pkf = s.get("h_lim_peak_rad_s", {}), s.get("h_lim_flight_peak_rad_s", {})
-        L += ["", "In flight above the test-bed value (published: below, 0.114 against 0.370 and 0.189 against 0.600): " + "; ".join(
+        both = {k: d for k, d in pub.get("h_lim", {}).items() if {"testbed", "flight"} <= set(d)}
+        said = (" (published: below, " + ", ".join(f"{k} {d['flight']} against {d['testbed']}" for k, d in both.items())
+                + ")") if both else ""
+        L += ["", f"In flight above the test-bed value{said}: " + "; ".join(
             f"{n} ({s['h_lim_flight'][n]:.3g} against {s['h_lim'][n]:.3g}; set at {_f(pkf.get(n), '{:.3g}')} rad/s "
             f"in flight, {_f(pk.get(n), '{:.3g}')} rad/s on the test-bed)" for n in above) +
             ". Above the campaign band the second-order flight model's replicas cannot differ beyond its fixed "
