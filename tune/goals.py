@@ -31,7 +31,7 @@ from rotorlab.config import REQUIRED, Table, _is_number
 from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet
 from rotorlab.tune import cascade as cas
-from rotorlab.tune.hinfstruct import Channel, StartFailure, _Problem, closed_loop, run_starts
+from rotorlab.tune.hinfstruct import SPEC_SUB_ITER, Channel, StartFailure, _Problem, closed_loop, run_starts
 from rotorlab.tune.margins import crossover_frequencies, margins
 
 __all__ = ["GOAL_TYPES", "Goal", "Tracking", "CrossoverBand", "Sensitivity", "Rejection", "Effort", "Margins", "Poles",
@@ -412,6 +412,10 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
                  executor=None) -> TuneResult:
     """Tune the parameters listed in ``spec.tune`` against ``spec.goals`` on every model.
 
+    Each start runs the structured H-inf engine of :mod:`rotorlab.tune.hinfstruct` (stabilisation phase, then
+    tangent-program steps with hard goals as constraints and the stationarity stop, alternated with BFGS on
+    the exact penalty); ``max_iter`` bounds both kinds of iteration together.
+
     The starts run through ``executor`` (a :class:`rotorlab.executor.Executor`, e.g. the pipeline's, local or
     Dask) or, without one, a local pool of ``n_jobs`` processes (:func:`rotorlab.tune.hinfstruct.run_starts`); the
     result does not depend on where they ran.
@@ -438,7 +442,8 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
     scale = np.maximum(np.abs(th0[free]), 1e-3)
     prob = _Problem(S, channels, stab, free, scale, poles=poles)
     results = run_starts(prob, th0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, max_iter=max_iter,
-                         tol=tol, time_limit_s=time_limit_s, spread=0.3, progress=progress, executor=executor)
+                         tol=tol, time_limit_s=time_limit_s, spread=0.3, progress=progress, executor=executor,
+                         sub_iter=SPEC_SUB_ITER)
     best, best_key, per_start = None, None, []
     for r in results:
         if isinstance(r, StartFailure):

@@ -39,10 +39,13 @@ descending along the non-smooth valleys where the previous engine stopped at a p
 (benchmarks/bench_hinfstruct.py has the numbers). Random starts are random controllers of log-uniformly
 drawn size (three decades), each made stabilising by phase one, and run through the project's executor.
 
-The same engine serves several weighted channels at once (soft goals minimised, hard goals kept <= 1), which
-is how :mod:`rotorlab.tune.cascade` tunes against systune-like goals: that path runs the tangent-program
-steps alone with the historical stopping test (``method="sqp"``), which keeps the tuned ANTEOS gains and the
-one-second start of benchmarks/bench_tune.py; it shares the stabilisation phase, starts and executor.
+The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
+goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
+:func:`rotorlab.tune.goals.tune_cascade` (``rotorlab tune``, the pipeline) tunes the cascade against
+systune-like goals. There the tangent program carries the hard goals as constraints, and the BFGS phase
+minimises the exact penalty ``soft + PENALTY * max(0, hard - bound)`` (its end point is kept only when it is
+no worse in (violation, objective)); the only setting that differs is the SLSQP budget per tangent-program
+subproblem (:data:`SPEC_SUB_ITER`), which keeps a start under a second (benchmarks/bench_tune.py).
 """
 
 from __future__ import annotations
@@ -59,21 +62,24 @@ from rotorlab import lti
 from rotorlab.executor import LocalExecutor, SerialExecutor, task_seeds
 from rotorlab.tune.blocks import Block, StaticGain, Structure
 
-__all__ = ["Channel", "HinfstructResult", "hinfstruct", "closed_loop", "optimise", "NotStabilisableError",
+__all__ = ["Channel", "HinfstructResult", "hinfstruct", "closed_loop", "NotStabilisableError",
            "StabilisationError", "StartFailure", "run_starts"]
 
 
 # hard goals are enforced at this level inside the QP so that the verified value lands below 1 despite the
 # linearisation and the finite active frequency set
 HARD_BOUND = 0.995
-# SLSQP iterations per trust-region subproblem. Its active frequency set is refreshed after every outer
-# step anyway, so solving it to convergence (20 iterations) buys nothing: on the P2-A2 and A2-MINI/B specs
-# 10 halves the callbacks and reaches the same or lower objectives.
-SUBPROBLEM_ITERATIONS = 10
-# iterations per round of the hybrid optimiser: tangent-program steps, then at least this many BFGS steps
-SQP_ROUND = 30
+# SLSQP iterations per tangent-program subproblem. Its active frequency set is refreshed after every outer step
+# anyway; on hinfstruct's hard problems (one channel, many equal peaks) solving it further pays, on the cascade
+# specs (ten goals, 5-9 parameters, most SLSQP callbacks spent in its line search) 5 reaches the same or lower
+# objectives than 10 or 60 at a fraction of the callbacks (benchmarks/bench_tune.py).
 HYBRID_SUB_ITER = 60
+SPEC_SUB_ITER = 5
+SQP_ROUND = 30
 BFGS_ROUND = 100
+# exact-penalty weight of hard-goal violations in the BFGS phase (above the Lagrange multipliers of the
+# cascade specs, whose goals are normalised to 1)
+PENALTY = 10.0
 
 
 class NotStabilisableError(ValueError):
@@ -423,6 +429,7 @@ class _Problem:
         self.grid_points = _Points(self.channels, [(i, c.grid) for i, c in enumerate(self.channels)],
                                                [c.Pgrid for c in self.channels])
         self._peak_cache = (None, None)
+        self._mat_cache = (None, None, None)
         c0 = self.channels[0]
         # one plain H-inf channel (hinfstruct): its objective is the exact ab13dd norm
         self.exact = (len(self.channels) == 1 and c0.exact_peak and c0.weight is None and c0.offset == 0.0
@@ -432,6 +439,7 @@ class _Problem:
         d = self.__dict__.copy()
         d["stab"] = [(_ss_state(P), nm, nc) for P, nm, nc in self.stab]
         d["_peak_cache"] = (None, None)
+        d["_mat_cache"] = (None, None, None)
         return d
 
     def __setstate__(self, d):
@@ -445,6 +453,16 @@ class _Problem:
         g, w = lti.hinfnorm(ct.ss(*mats, ch.dt) if ch.dt else ct.ss(*mats), tols=(1e-8,))
         return g, (w if np.isfinite(w) else ch.lo)
 
+    def matrices(self, theta, grad=False):
+        """Controller matrices (and their derivatives along the free parameters when ``grad``) at theta, cached
+        for the last theta: the channel values and the stability terms of one callback ask for the same."""
+        key = np.asarray(theta, float).tobytes()
+        if self._mat_cache[0] != key:
+            self._mat_cache = (key, self.s.matrices(theta), None)
+        if grad and self._mat_cache[2] is None:
+            self._mat_cache = self._mat_cache[:2] + (self.s.matrix_derivatives(theta, self.free),)
+        return self._mat_cache[1], (self._mat_cache[2] if grad else None)
+
     def theta(self, x):
         th = self.theta0.copy()
         th[self.free] = x * self.scale
@@ -457,8 +475,7 @@ class _Problem:
     def eig_terms(self, theta, grad=False):
         """Stability constraint values g >= 0 (one per closed-loop eigenvalue and plant) and their gradients."""
         gs, dgs = [], []
-        Km = self.s.matrices(theta)
-        dKm = self.s.matrix_derivatives(theta, self.free) if grad else None
+        Km, dKm = self.matrices(theta, grad)
         for _stab, part, dt in zip(self.stab, self._parts, self._stab_dt):
             Acl = _cl_A(part, *Km)
             if Acl.shape[0] == 0:
@@ -514,8 +531,7 @@ class _Problem:
     def evaluate_points(self, theta, pts: _Points, grad=False):
         """Values (and gradients w.r.t. the free parameters, unscaled) of every request in ``pts``: lists in
         request order. One controller response and one LFT per channel group."""
-        Km = self.s.matrices(theta)
-        dKm = self.s.matrix_derivatives(theta, self.free) if grad else None
+        Km, dKm = self.matrices(theta, grad)
         vals, grads = [None] * pts.n_items, [None] * pts.n_items
         for nz, nw, cat, mapping in pts.groups:
             K, dK = _controller_freq(Km, dKm, cat["pts"])
@@ -611,8 +627,9 @@ def _better(a, b, tol=0.0):
 class _Subproblem:
     """Constraint values and Jacobian of one trust-region SLSQP solve over a fixed active frequency set.
 
-    SLSQP asks for the constraint values and their Jacobian in separate callbacks at the same point; both
-    come from one batched evaluation here, cached by the point.
+    SLSQP's line search asks for the constraint values at many trial points (five to ten per iteration on the
+    cascade specs) and for the Jacobian only at the accepted ones, so values are computed alone (no controller
+    derivatives, eigenvalues without eigenvectors) and the Jacobian on request, each cached by the point.
     """
 
     def __init__(self, prob: _Problem, active, activeP):
@@ -621,47 +638,50 @@ class _Subproblem:
         self.chans = [ci for ci in range(len(prob.channels)) if len(active[ci])]
         self.pts = _Points(prob.channels, [(ci, active[ci]) for ci in self.chans],
                                        [np.array(activeP[ci]) for ci in self.chans])
-        self._key = None
-
-    def _eval(self, z):
-        key = z[:self.nx].tobytes()
-        if key == self._key:
-            return self._val
-        prob, nx = self.prob, self.nx
-        th = prob.theta(z[:nx])
-        vals, grads = prob.evaluate_points(th, self.pts, grad=True)
-        g_eig, dg_eig = prob.eig_terms(th, grad=True)
-        rows_v, rows_j = [], []
-        for ci, v, g in zip(self.chans, vals, grads):
-            g = (g * prob.scale[:, None]).T  # (nf, nfree) in scaled variables
-            if prob.is_soft[ci]:
-                rows_v.append((1.0, 0.0, v))       # t - v
-                rows_j.append(np.hstack([-g, np.ones((g.shape[0], 1))]))
-            if prob.is_hard[ci]:
-                rows_v.append((0.0, HARD_BOUND, v))  # HARD_BOUND - v
-                rows_j.append(np.hstack([-g, np.zeros((g.shape[0], 1))]))
-        rows_j.append(np.hstack([dg_eig.T, np.zeros((dg_eig.shape[1], 1))]))
-        self._key, self._val = key, (rows_v, g_eig, np.vstack(rows_j))
-        return self._val
+        self._fkey = self._jkey = None
 
     def fun(self, z):
-        rows_v, g_eig, _ = self._eval(z)
-        return np.concatenate([a * z[self.nx] + b - v for a, b, v in rows_v] + [g_eig])
+        key = z.tobytes()
+        if key != self._fkey:
+            prob, nx = self.prob, self.nx
+            th = prob.theta(z[:nx])
+            vals = prob.evaluate_points(th, self.pts)[0]
+            rows = []
+            for ci, v in zip(self.chans, vals):
+                if prob.is_soft[ci]:
+                    rows.append(z[nx] - v)            # t - v
+                if prob.is_hard[ci]:
+                    rows.append(HARD_BOUND - v)
+            self._fkey, self._fval = key, np.concatenate(rows + [prob.eig_terms(th)])
+        return self._fval
 
     def jac(self, z):
-        return self._eval(z)[2]
+        key = z[:self.nx].tobytes()
+        if key != self._jkey:
+            prob = self.prob
+            th = prob.theta(z[:self.nx])
+            grads = prob.evaluate_points(th, self.pts, grad=True)[1]
+            dg_eig = prob.eig_terms(th, grad=True)[1]
+            rows = []
+            for ci, g in zip(self.chans, grads):
+                g = (g * prob.scale[:, None]).T  # (nf, nfree) in scaled variables
+                if prob.is_soft[ci]:
+                    rows.append(np.hstack([-g, np.ones((g.shape[0], 1))]))
+                if prob.is_hard[ci]:
+                    rows.append(np.hstack([-g, np.zeros((g.shape[0], 1))]))
+            rows.append(np.hstack([dg_eig.T, np.zeros((dg_eig.shape[1], 1))]))
+            self._jkey, self._jval = key, np.vstack(rows)
+        return self._jval
 
 
-def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, stationary_stop=False,
-         sub_iter=SUBPROBLEM_ITERATIONS):
+def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, sub_iter):
     """Trust-region epigraph SQP steps (the tangent program of Apkarian & Noll over the active peak
     frequencies, solved by SLSQP inside a box trust region).
 
-    ``stationary_stop=False`` keeps the cascade tuner's historical test (three accepted steps that each gain
-    less than ``tol``). With ``stationary_stop=True`` the iteration stops on the stationarity measure instead:
-    the decrease predicted by the tangent program over every active frequency, relative to the objective; it
-    is zero exactly when zero lies in the convex hull of the active gradients (a Clarke-stationary point of the
-    max function over the active set). Returns (x, merit, last predicted relative decrease).
+    The iteration stops on the stationarity measure: the decrease predicted by the tangent program over every
+    active frequency, relative to the objective; it is zero exactly when zero lies in the convex hull of the
+    active gradients (a Clarke-stationary point of the max function over the active set). Returns (x, merit,
+    last predicted relative decrease).
     """
     nch = len(prob.channels)
     active = [[] for _ in range(nch)]
@@ -696,7 +716,6 @@ def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, stat
 
     add_peaks(prob.theta(x))
     delta = 1.0
-    stall = 0
     nx = x.size
     pred = np.inf
     for _ in range(max_iter):
@@ -716,35 +735,15 @@ def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, stat
         if np.isfinite(mn[1]):
             add_peaks(prob.theta(xn))
         if _better(mn, m):
-            gain = (m[1] - mn[1]) / max(m[1], 1e-12)
             hit = np.any(np.abs(xn - x) > 0.9 * delta)
             x, m = xn, mn
             delta = min(3 * delta, 100.0) if hit else delta
-            stall = stall + 1 if (gain < tol and m[0] <= 1e-9) else 0
         else:
             delta *= 0.3
         history.append(m[1])
-        if stationary_stop:
-            if (pred < tol and m[0] <= 1e-9) or delta < 1e-6:
-                break
-        elif stall >= 3 or delta < 1e-4:
+        if (pred < tol and m[0] <= 1e-9) or delta < 1e-6:
             break
     return x, m, pred
-
-
-def optimise(prob: _Problem, theta_start, *, max_iter=60, tol=1e-4, time_limit_s=None, lower=None, upper=None):
-    """Trust-region epigraph SQP from a stabilising ``theta_start`` (the constrained engine: hard goals and
-    pole regions as constraints, as :mod:`rotorlab.tune.goals` uses it); returns (theta, merit, history)."""
-    x = prob.x_of(theta_start)
-    lo = prob.x_of(lower) if lower is not None else np.full(x.shape, -np.inf)
-    hi = prob.x_of(upper) if upper is not None else np.full(x.shape, np.inf)
-    m = prob.merit(prob.theta(x))
-    if not np.isfinite(m[1]):
-        raise NotStabilisableError("the start does not stabilise the closed loop")
-    deadline = None if time_limit_s is None else time.perf_counter() + time_limit_s
-    history = [m[1]]
-    x, m, _ = _sqp(prob, x, m, lo, hi, max_iter=max_iter, tol=tol, deadline=deadline, history=history)
-    return prob.theta(x), m, history
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -835,11 +834,14 @@ def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None):
 
 
 class _Objective:
-    """f(x) = the largest soft channel value (exact ab13dd norm for the plain H-inf channel) and its gradient
-    at the peak frequency; inf outside the bounds or where the closed loop is not stable."""
+    """f(x) = the largest soft channel value (exact ab13dd norm for the plain H-inf channel) plus, when the
+    problem has hard goals, the exact penalty ``PENALTY * max(0, largest hard value - HARD_BOUND)``, and its
+    gradient at the peak frequencies; inf outside the bounds or where the closed loop is not stable (or
+    leaves the pole region)."""
 
     def __init__(self, prob: _Problem, lo, hi):
         self.prob, self.lo, self.hi = prob, lo, hi
+        self.hard = [ci for ci, (h, s) in enumerate(zip(prob.is_hard, prob.is_soft)) if h and not s]
         self.evals = 0
 
     def __call__(self, x):
@@ -851,22 +853,29 @@ class _Objective:
         if not prob.stable(th):
             return np.inf, None
         if prob.exact:
-            ch = prob.channels[0]
             f, w = prob.exact_peak(th)
-            ci = 0
+            req = [(0, w)]
         else:
             pk = prob.all_peaks(th)
             f, ci, w = max((pk[ci][0][0], ci, pk[ci][0][1]) for ci in range(len(pk)) if prob.is_soft[ci])
-            ch = prob.channels[ci]
-        w = min(max(w, ch.lo), ch.hi)
-        _, grads = prob.evaluate_points(th, _Points(prob.channels, [(ci, np.array([w]))]), grad=True)
-        return float(f), grads[0][:, 0] * prob.scale
+            req = [(ci, w)]
+            if self.hard:
+                h, hci, hw = max((pk[ci][0][0], ci, pk[ci][0][1]) for ci in self.hard)
+                if h > HARD_BOUND:
+                    f += PENALTY * (h - HARD_BOUND)
+                    req.append((hci, hw))
+        req = [(ci, np.array([min(max(w, prob.channels[ci].lo), prob.channels[ci].hi)])) for ci, w in req]
+        grads = prob.evaluate_points(th, _Points(prob.channels, req), grad=True)[1]
+        g = grads[0][:, 0] + (PENALTY * grads[1][:, 0] if len(grads) > 1 else 0.0)
+        return float(f), g * prob.scale
 
 
-def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadline):
+def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadline, sub_iter=HYBRID_SUB_ITER):
     """Rounds of (1) the tangent program over every active peak frequency (trust-region SQP, stopped on its
     stationarity measure) and (2) nonsmooth BFGS with weak Wolfe steps, until a whole round gains less than
-    ``tol`` relative; returns (theta, merit, history, last predicted relative decrease)."""
+    ``tol`` relative; returns (theta, merit, history, last predicted relative decrease). With hard goals the
+    BFGS phase minimises the exact penalty (:class:`_Objective`) and its end point is kept only when it is
+    not worse in the merit (violation first, then the objective)."""
     x = prob.x_of(theta_start)
     lo, hi = prob.x_of(lower), prob.x_of(upper)
     fg = _Objective(prob, lo, hi)
@@ -876,14 +885,16 @@ def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadlin
     history = [m[1]]
     pred = np.inf
     while len(history) <= max_iter:
-        f_round = m[1]
+        m_round = m
         x, m, pred = _sqp(prob, x, m, lo, hi, max_iter=min(SQP_ROUND, max_iter + 1 - len(history)), tol=tol,
-                          deadline=deadline, history=history, stationary_stop=True, sub_iter=HYBRID_SUB_ITER)
+                          deadline=deadline, history=history, sub_iter=sub_iter)
         f, g = fg(x)
-        x, f, g = _bfgs(fg, x, f, g, max_iter=min(max(BFGS_ROUND, 10 * x.size), max_iter + 1 - len(history)),
-                        tol=tol, deadline=deadline, history=history)
-        m = prob.merit(prob.theta(x))
-        if f_round - m[1] <= tol * f_round or (deadline is not None and time.perf_counter() > deadline):
+        xb, f, g = _bfgs(fg, x, f, g, max_iter=min(max(BFGS_ROUND, 10 * x.size), max_iter + 1 - len(history)),
+                         tol=tol, deadline=deadline, history=history)
+        mb = prob.merit(prob.theta(xb))
+        if not _better(m, mb):
+            x, m = xb, mb
+        if not _better(m, m_round, tol) or (deadline is not None and time.perf_counter() > deadline):
             break
     return prob.theta(x), m, history, pred
 
@@ -1022,22 +1033,19 @@ def _scaled_start(prob: _Problem, theta0, rng, lower, upper, decades=(-1.5, 1.5)
 
 
 def _run_start(job):
-    prob, theta, lower, upper, max_iter, tol, time_limit_s, method, seed = job
+    prob, theta, lower, upper, max_iter, tol, time_limit_s, sub_iter, seed = job
     t0, c0 = time.perf_counter(), time.process_time()
     th = _stabilise(prob, theta, lower, upper, np.random.default_rng(seed))
     if isinstance(th, StartFailure):
         return th
     deadline = None if time_limit_s is None else t0 + time_limit_s
-    if method == "hybrid":
-        th, m, hist, pred = _hybrid(prob, th, lower, upper, max_iter=max_iter, tol=tol, deadline=deadline)
-        return th, m, hist, pred, (time.perf_counter() - t0, time.process_time() - c0)
-    th, m, hist = optimise(prob, th, max_iter=max_iter, tol=tol, lower=lower, upper=upper,
-                           time_limit_s=None if deadline is None else max(deadline - time.perf_counter(), 0.0))
-    return th, m, hist, np.nan, (time.perf_counter() - t0, time.process_time() - c0)
+    th, m, hist, pred = _hybrid(prob, th, lower, upper, max_iter=max_iter, tol=tol, deadline=deadline,
+                                sub_iter=sub_iter)
+    return th, m, hist, pred, (time.perf_counter() - t0, time.process_time() - c0)
 
 
 def run_starts(prob: _Problem, theta0, lower, upper, *, starts=1, seed=0, n_jobs=1, executor=None, max_iter=60,
-               tol=1e-4, time_limit_s=None, spread=None, method="sqp", progress=False):
+               tol=1e-4, time_limit_s=None, spread=None, sub_iter=HYBRID_SUB_ITER, progress=False):
     """Optimise from ``theta0`` and ``starts - 1`` seeded random starts: multiplicative perturbations of
     theta0 with log-std ``spread`` when given (the cascade), else random controllers of log-uniform size
     (:func:`_scaled_start`). Each start first runs the stabilisation phase.
@@ -1053,7 +1061,7 @@ def run_starts(prob: _Problem, theta0, lower, upper, *, starts=1, seed=0, n_jobs
         thetas = [_perturbed_start(prob, theta0, rng, spread, lower, upper) for _ in range(max(starts, 1) - 1)]
     thetas = [np.clip(theta0, lower, upper)] + thetas
     seeds = task_seeds(int(rng.integers(1 << 31)), len(thetas))
-    jobs = [(prob, th, lower, upper, max_iter, tol, time_limit_s, method, s) for th, s in zip(thetas, seeds)]
+    jobs = [(prob, th, lower, upper, max_iter, tol, time_limit_s, sub_iter, s) for th, s in zip(thetas, seeds)]
     if executor is not None:
         return list(executor.map(_run_start, jobs, desc="starts", progress=progress))
     ex = LocalExecutor(n_jobs) if n_jobs and n_jobs > 1 else SerialExecutor()
@@ -1178,7 +1186,7 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     ch = Channel(P, nmeas, ncon, name="hinf", exact_peak=True)
     prob = _Problem(S, [ch], [(P, nmeas, ncon)], free, scale)
     results = run_starts(prob, theta0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, executor=executor,
-                         max_iter=max_iter, tol=tol, time_limit_s=time_limit_s, method="hybrid", progress=progress)
+                         max_iter=max_iter, tol=tol, time_limit_s=time_limit_s, progress=progress)
     verified, failures = [], []
     for r in results:
         if isinstance(r, StartFailure):
