@@ -154,6 +154,7 @@ class Channel:
     def __getstate__(self):
         # python-control models do not pickle (a lambda inside); carry their matrices to worker processes
         d = self.__dict__.copy()
+        d.pop("_basis", None)  # keyed by object ids, which do not survive the trip
         d["P"] = _ss_state(self.P)
         if isinstance(self.weight, (ct.StateSpace, ct.TransferFunction)):
             d["weight"] = ("ss", _ss_state(lti.as_ss(self.weight)))
@@ -314,7 +315,7 @@ def _lft_values(Pf, Wf, off, is_min, K, dK, nz, nw):
     P21, P22 = Pf[:, nz:, :nw], Pf[:, nz:, nw:]
     nu = K.shape[1]
     KP21 = K @ P21
-    M = np.linalg.inv(np.eye(nu) - K @ P22)
+    M = _small_inv(np.eye(nu) - K @ P22)
     left = P12 @ M
     T = P11 + left @ KP21 + off[:, None, None]
     if min(nz, nw) == 1:  # a vector: its only singular value is its 2-norm, no SVD needed
@@ -341,6 +342,20 @@ def _lft_values(Pf, Wf, off, is_min, K, dK, nz, nw):
     grad = Wf * dsig
     grad[:, is_min] = -val[is_min] * dsig[:, is_min] / sig[is_min]  # d(W/sigma) = -(W/sigma) d sigma / sigma
     return val, grad
+
+
+def _small_inv(X):
+    """Inverse of a stack (N, n, n) of small matrices. For n <= 2 (the cascade's two controls, every SISO loop)
+    by the explicit formula: numpy's batched inverse calls LAPACK once per matrix, which costs more than the
+    arithmetic here and made it the largest single item of a cascade start."""
+    n = X.shape[-1]
+    if n == 1:
+        return 1.0 / X
+    if n == 2:
+        a, b, c, d = X[..., 0, 0], X[..., 0, 1], X[..., 1, 0], X[..., 1, 1]
+        det = a * d - b * c
+        return np.stack([np.stack([d, -b], -1), np.stack([-c, a], -1)], -2) / det[..., None, None]
+    return np.linalg.inv(X)
 
 
 class _Points:
@@ -388,13 +403,20 @@ class _Points:
             wall = np.concatenate([ws[k] for k in ks])
             if A.shape[0]:
                 # the channels' input matrices are views of one plant's few inputs: solve for an orthonormal
-                # basis of their column space only (rank 1 for the SISO cascade), then map back
-                Ball = np.hstack([channels[ci]._abcd[1] for ci in cis])
-                U, sv, Vt = np.linalg.svd(Ball, full_matrices=False)
-                r = max(int(np.sum(sv > 1e-12 * sv[0])), 1) if sv.size and sv[0] > 0 else 1
+                # basis of their column space only (rank 1 for the SISO cascade), then map back; the basis is
+                # kept on the first channel for the next request of the same channels (the peak search asks
+                # for new frequencies at every evaluation)
+                key = tuple(id(channels[ci]) for ci in cis)
+                cache = channels[cis[0]].__dict__.setdefault("_basis", {})
+                if key not in cache:
+                    Ball = np.hstack([channels[ci]._abcd[1] for ci in cis])
+                    U, sv, Vt = np.linalg.svd(Ball, full_matrices=False)
+                    r = max(int(np.sum(sv > 1e-12 * sv[0])), 1) if sv.size and sv[0] > 0 else 1
+                    cache[key] = (U[:, :r], sv[:r, None] * Vt[:r], np.eye(A.shape[0]))
+                Ur, SV, eye = cache[key]
                 pts = channels[cis[0]].points(wall)
-                X = np.linalg.solve(pts[:, None, None] * np.eye(A.shape[0]) - A,
-                                    np.broadcast_to(U[:, :r], (wall.size, A.shape[0], r))) @ (sv[:r, None] * Vt[:r])
+                X = np.linalg.solve(pts[:, None, None] * eye - A,
+                                    np.broadcast_to(Ur, (wall.size,) + Ur.shape)) @ SV
             i = 0
             for k in ks:
                 ci, n = items[k][0], ws[k].size
