@@ -910,6 +910,11 @@ def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadlin
         m_round = m
         x, m, pred = _sqp(prob, x, m, lo, hi, max_iter=min(SQP_ROUND, max_iter + 1 - len(history)), tol=tol,
                           deadline=deadline, history=history, sub_iter=sub_iter)
+        if fg.hard and m[0] <= 1e-9 and pred < tol:
+            # feasible and stationary for the tangent program with the hard goals as constraints: BFGS on the
+            # exact penalty can then only creep along the constraint boundary (measured on the P2-A2 spec:
+            # 23 iterations for -0.02 %, ending above the tangent program's point)
+            break
         f, g = fg(x)
         xb, f, g = _bfgs(fg, x, f, g, max_iter=min(max(BFGS_ROUND, 10 * x.size), max_iter + 1 - len(history)),
                          tol=tol, deadline=deadline, history=history)
