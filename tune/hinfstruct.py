@@ -75,8 +75,11 @@ HARD_BOUND = 0.995
 # objectives than 10 or 60 at a fraction of the callbacks (benchmarks/bench_tune.py).
 HYBRID_SUB_ITER = 60
 SPEC_SUB_ITER = 5
+# iterations per round of the hybrid optimiser: tangent-program steps, then at least this many BFGS steps
 SQP_ROUND = 30
 BFGS_ROUND = 100
+# tangent-program steps after which a violation of the hard goals that shrank by less than 20 % ends the round
+INFEASIBLE_WINDOW = 8
 # exact-penalty weight of hard-goal violations in the BFGS phase (above the Lagrange multipliers of the
 # cascade specs, whose goals are normalised to 1)
 PENALTY = 10.0
@@ -738,6 +741,7 @@ def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, sub_
 
     add_peaks(prob.theta(x))
     delta = 1.0
+    viol = [m[0]]
     nx = x.size
     pred = np.inf
     for _ in range(max_iter):
@@ -763,7 +767,12 @@ def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, sub_
         else:
             delta *= 0.3
         history.append(m[1])
+        viol.append(m[0])
         if (pred < tol and m[0] <= 1e-9) or delta < 1e-6:
+            break
+        if m[0] > 1e-9 and len(viol) > INFEASIBLE_WINDOW and viol[-1] > 0.8 * viol[-1 - INFEASIBLE_WINDOW]:
+            # hard goals violated and the linearised constraints no longer reduce the violation (the steps
+            # leave the stability region or barely move): hand over to the BFGS phase's exact penalty
             break
     return x, m, pred
 
