@@ -120,10 +120,11 @@ def test_acceptance_p2a2_testbed_from_standard_gains():
 
 
 def test_acceptance_a2minib_two_dof_from_standard_gains():
-    # the hard response-time goal leaves the start from the standard gains infeasible for one start: the
-    # default multi-start (rotorlab tune's 4) finds the feasible optimum
+    # the standard gains violate the hard goals (response time among them) and one start gets feasible: the
+    # tangent program alone stalled there (0.763 with the goals violated, issue 14); its violation stops
+    # shrinking and the BFGS phase on the exact penalty of the hard goals takes over
     res, pub = _acceptance("anteos-a2minib", A2_TB, VEH / "anteos-a2minib/gains/standard.toml",
-                           VEH / "anteos-a2minib/gains/optimal.toml", starts=4)
+                           VEH / "anteos-a2minib/gains/optimal.toml")
     g = res.gains["pitch"]
     assert g.outer.c == 0.0 and g.inner.c == 1.0  # c flags are not optimised (as published)
     assert 0.0 <= g.inner.b <= 1.0
