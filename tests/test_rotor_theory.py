@@ -60,14 +60,19 @@ def test_p2a2_speed_derivatives_in_theory_ranges():
     assert 0.02 < m_u < 0.13  # N m/(m/s)
 
 
+def _hovering(vehicle: str):
+    """The vehicle, its free-flight scene, model and data at the hover keyframe."""
+    v = load_vehicle(vehicle)
+    sc = build_scene("free-flight", v)
+    d = mujoco.MjData(sc.model)
+    mujoco.mj_resetDataKeyframe(sc.model, d, 0)
+    return v, sc, sc.model, d
+
+
 @pytest.mark.parametrize("vehicle", ANTEOS + ["tuhh-quad"])
 def test_twin_forces_are_the_derivatives(vehicle):
     """Forward airspeed on the hovering twin: MuJoCo's actuator forces are -4 dH/du and the hub moments."""
-    v = load_vehicle(vehicle)
-    sc = build_scene("free-flight", v)
-    m = sc.model
-    d = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d, 0)
+    v, sc, m, d = _hovering(vehicle)
     u = 0.2  # m/s headwind on every rotor (the wind input of the H-force actuators)
     d.ctrl[sc.aero_actuators["hx"]] = u
     mujoco.mj_forward(m, d)
@@ -94,11 +99,7 @@ def test_rig_dc_gain_is_control_over_rotor_damping(vehicle):
 @pytest.mark.parametrize("vehicle", ANTEOS)
 def test_hub_element_moments(vehicle):
     """A disc tilted against its hub spring: hinge torque = K_hub * angle; the air damps its tilt rate by D."""
-    v = load_vehicle(vehicle)
-    sc = build_scene("free-flight", v)
-    m = sc.model
-    d = mujoco.MjData(m)
-    mujoco.mj_resetDataKeyframe(m, d, 0)
+    v, _, m, d = _hovering(vehicle)
     j = m.joint(f"{PREFIX}flap1_y")
     d.qpos[j.qposadr[0]] = 0.01
     d.qvel[j.dofadr[0]] = 0.1
