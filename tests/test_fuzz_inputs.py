@@ -131,22 +131,24 @@ def _no_escape(capsys, argv, ok=(0, 1, 2)):
 
 
 # -- the fuzz tests ----------------------------------------------------------------------------------------
+def _run_rest_with(tmp_path, capsys, flag: str, name: str, doc: dict) -> None:
+    """``rotorlab run rest`` on the pitch rig with ``doc`` written to ``name`` and passed as ``flag``."""
+    p = tmp_path / name
+    p.write_text(to_toml(doc))
+    _no_escape(capsys, ["run", "rest", "--scene", "pitch-rig", flag, p, "--duration", "0.04",
+                        "--out", tmp_path / "r"])
+
+
 @FUZZ
 @given(doc=mutated(VEHICLE))
 def test_fuzz_vehicle_toml(tmp_path, capsys, doc):
-    p = tmp_path / "vehicle.toml"
-    p.write_text(to_toml(doc))
-    _no_escape(capsys, ["run", "rest", "--scene", "pitch-rig", "--vehicle", p, "--duration", "0.04",
-                        "--out", tmp_path / "r"])
+    _run_rest_with(tmp_path, capsys, "--vehicle", "vehicle.toml", doc)
 
 
 @FUZZ
 @given(doc=mutated(GAINS))
 def test_fuzz_gains_toml(tmp_path, capsys, doc):
-    p = tmp_path / "g.toml"
-    p.write_text(to_toml(doc))
-    _no_escape(capsys, ["run", "rest", "--scene", "pitch-rig", "--gains", p, "--duration", "0.04",
-                        "--out", tmp_path / "r"])
+    _run_rest_with(tmp_path, capsys, "--gains", "g.toml", doc)
 
 
 @pytest.fixture
