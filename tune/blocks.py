@@ -114,12 +114,17 @@ class StaticGain(Block):
 
     def matrix_derivatives(self, theta, idx):
         """Exact: the map is linear, d K / d k[i,j] is the unit matrix E_ij."""
-        out = []
-        for i in idx:
-            dD = np.zeros(self.nu * self.ny)
-            dD[i] = 1.0
-            out.append((np.zeros((0, 0)), np.zeros((0, self.ny)), np.zeros((self.nu, 0)), dD.reshape(self.nu, self.ny)))
-        return out
+        return _unit_derivatives(self, idx)
+
+
+def _unit_derivatives(block, idx):
+    """Derivatives of a block linear in its parameters: the matrices of each unit parameter vector."""
+    out = []
+    for i in idx:
+        e = np.zeros(len(block.params))
+        e[i] = 1.0
+        out.append(block.matrices(e))
+    return out
 
 
 def _pid_parts(kp, ki, kd, tf, dt, integral, derivative):
@@ -257,12 +262,7 @@ class FixedOrderSS(Block):
 
     def matrix_derivatives(self, theta, idx):
         """Exact: every parameter is one matrix entry, its derivative a unit matrix."""
-        out = []
-        for i in idx:
-            e = np.zeros(len(self.params))
-            e[i] = 1.0
-            out.append(self.matrices(e))
-        return out
+        return _unit_derivatives(self, idx)
 
     def matrices(self, theta):
         n, ny, nu = self._n, self.ny, self.nu

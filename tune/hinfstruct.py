@@ -501,7 +501,7 @@ class _Problem:
         """Stability constraint values g >= 0 (one per closed-loop eigenvalue and plant) and their gradients."""
         gs, dgs = [], []
         Km, dKm = self.matrices(theta, grad)
-        for _stab, part, dt in zip(self.stab, self._parts, self._stab_dt):
+        for part, dt in zip(self._parts, self._stab_dt):
             Acl = _cl_A(part, *Km)
             if Acl.shape[0] == 0:
                 continue
@@ -973,7 +973,8 @@ def _fixed_modes(prob: _Problem, theta, rng, tol=1e-6):
     for structural fixed modes, an eigenvalue shared by the closed loops of three random controllers of
     widely different size. Returns a list of (eigenvalue, reason)."""
     out = []
-    for _stab, part, dt in zip(prob.stab, prob._parts, prob._stab_dt):
+    Km = prob.s.matrices(theta)
+    for part, dt in zip(prob._parts, prob._stab_dt):
         A, B2, C2 = part["A"], part["B2"], part["C2"]
         n = A.shape[0]
         unstable = (lambda lam: np.abs(lam) >= 1.0) if dt else (lambda lam: lam.real >= 0.0)
@@ -984,7 +985,6 @@ def _fixed_modes(prob: _Problem, theta, rng, tol=1e-6):
                 out.append((complex(lam), "not controllable from u (PBH rank test)"))
             elif np.linalg.matrix_rank(np.vstack([lam * np.eye(n) - A, C2]), tol * sc) < n:
                 out.append((complex(lam), "not observable from y (PBH rank test)"))
-        Km = prob.s.matrices(theta)
         lam_t = np.linalg.eigvals(_cl_A(part, *Km))
         samples = []
         for mag in (0.1, 3.0, 100.0):
@@ -1032,9 +1032,6 @@ def _stabilise(prob: _Problem, theta, lower, upper, rng, max_iter=200, tries=3):
             x = np.clip(best[1] + max(1.0, np.linalg.norm(best[1])) * rng.standard_normal(x.size)
                         / np.sqrt(x.size), lo, hi)
             f, g = fa(x)
-            while not np.isfinite(f):
-                x = np.clip(best[1] + rng.standard_normal(x.size), lo, hi)
-                f, g = fa(x)
     th = prob.theta(best[1])
     return StartFailure(float(best[0]), _fixed_modes(prob, th, rng), iters)
 
