@@ -31,6 +31,7 @@ class RunLog:
     def __init__(self, columns: dict, capacity: int):
         self.units = {TIME_COLUMN: "s", **columns}
         self._names = list(self.units)
+        self._value_names = self._names[1:]
         self._index = {k: i for i, k in enumerate(self._names)}
         self._nan_fill = [np.nan] * (len(self._names) - 1)
         # row-major buffer: one list comprehension and one row store per tick, the cheapest append in Python
@@ -41,7 +42,7 @@ class RunLog:
         row = self._buf[self.n]
         row[0] = t
         # map() over the names runs the lookups in C: the cheapest gather of a dict into a row
-        row[1:] = list(map(values.get, self._names[1:], self._nan_fill))
+        row[1:] = list(map(values.get, self._value_names, self._nan_fill))
         self.n += 1
 
     def __getitem__(self, name: str) -> np.ndarray:
@@ -51,13 +52,15 @@ class RunLog:
     def columns(self) -> list[str]:
         return list(self.units)
 
+    def _bare_table(self) -> pa.Table:
+        return pa.table({k: np.ascontiguousarray(self._buf[: self.n, i]) for i, k in enumerate(self._names)})
+
     def table(self, meta: dict | None = None) -> pa.Table:
-        arrays = {k: np.ascontiguousarray(self._buf[: self.n, i]) for i, k in enumerate(self._names)}
-        return pa.table(arrays).replace_schema_metadata(encode_metadata(self.units, meta))
+        return self._bare_table().replace_schema_metadata(encode_metadata(self.units, meta))
 
     def write(self, path, meta: dict | None = None) -> Path:
-        """Write the Parquet file atomically (:func:`rotorlab.logformat.write_parquet`)."""
-        return write_parquet(path, self.table(meta), self.units, meta)
+        """Write the Parquet file atomically (:func:`rotorlab.logformat.write_parquet` sets the metadata)."""
+        return write_parquet(path, self._bare_table(), self.units, meta)
 
 
 def versions() -> dict:

@@ -167,7 +167,7 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
         raise ConfigError(f"scenario '{name}' runs in {list(mod.SCENES)}", field="scene", expected=list(mod.SCENES),
                           got=scene)
     duration_s = float(duration_s if duration_s is not None else mod.DURATION_S)
-    check_duration(duration_s, v.control_dt_s, record_poses)
+    n_ticks = check_duration(duration_s, v.control_dt_s, record_poses)
     if out is not None:  # before the simulation: a read-only folder must not cost the run
         atomic.check_writable_dir(out, "run folder")
     gs = resolve_gains(v, gains)
@@ -178,7 +178,6 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     sim = Simulator(scene, v, seed=seed, sensor_noise=noise, disturbances=setup.disturbances)
     fs = make_flight_software(v, gs, setup, sim.control_dt_s, controller if controller is not None else
                               (setup.controller or None))
-    n_ticks = int(round(duration_s / sim.control_dt_s))
     columns = {} if setup.drive is not None else dict(BASE_COLUMNS)
     if scene == "free-flight":
         columns.update(FLIGHT_COLUMNS)

@@ -222,7 +222,7 @@ class FlightSoftware:
 
     def step(self, t: float, meas: dict) -> dict:
         """One tick at time ``t`` (s). Returns a new dict of commands, set-points and internal signals."""
-        # written for speed (it runs every tick): locals, inline saturation, no per-tick allocation but the
+        # written for speed (it runs every tick): locals, one clip per command, no per-tick allocation but the
         # returned dict
         if self._engage:
             self._bumpless(meas)
