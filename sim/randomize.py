@@ -52,13 +52,19 @@ class Draw:
     wind_from_deg: float = 0.0
 
     def as_dict(self) -> dict:
-        """Flat numbers for tables (Monte Carlo Parquet rows)."""
+        """Flat numbers for tables (Monte Carlo Parquet rows; their units in :data:`DRAW_UNITS`)."""
         a, b, c = self.inertia_factors
         return {"mass_factor": self.mass_factor, "inertia_factor_x": a, "inertia_factor_y": b,
                 "inertia_factor_z": c, "lag_factor": self.lag_factor,
                 "delay_s": math.nan if self.delay_s is None else self.delay_s,
                 "imu_mount_factor": self.imu_mount_factor, "wind_speed_mps": self.wind_speed_mps,
                 "wind_from_deg": self.wind_from_deg}
+
+
+#: units of :meth:`Draw.as_dict`'s columns
+DRAW_UNITS = {"mass_factor": "1", "inertia_factor_x": "1", "inertia_factor_y": "1", "inertia_factor_z": "1",
+              "lag_factor": "1", "delay_s": "s", "imu_mount_factor": "1", "wind_speed_mps": "m/s",
+              "wind_from_deg": "deg"}
 
 
 def check_spreads(spreads: dict, keys=KEYS, field: str = "randomize") -> dict:

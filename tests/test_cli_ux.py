@@ -12,6 +12,7 @@ from scipy.signal import lfilter
 import rotorlab.plotting as plotting
 from rotorlab.cli import COMMANDS, build_parser, main
 from rotorlab.errors import ConfigError
+from rotorlab.logformat import read_parquet
 from rotorlab.sim.rerun_log import record_run
 from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.scenarios.gust import DEFAULTS
@@ -59,6 +60,9 @@ def test_montecarlo_prints_statistics_and_takes_spreads(tmp_path, capsys):
     line = next(ln for ln in _lines(text) if "pitch peak deviation [deg]" in ln)
     assert line.split()[-5:] == [f"{peak[k]:.4g}" for k in ("mean", "std", "p05", "p50", "p95")]
     assert "mass 0.2 relative" in text
+    # the drawn parameters carry their units in the batch table (metric columns carry theirs in their names)
+    _, units, _ = read_parquet(out / "batch-0000.parquet")
+    assert {"sample": "1", "mass_factor": "1", "delay_s": "s", "wind_speed_mps": "m/s"}.items() <= units.items()
     assert main(["montecarlo", "gust", "--vary", "mass=2"]) == 2
     assert "expected a spread >= 0 and < 1" in capsys.readouterr().err
 

@@ -26,9 +26,9 @@ from rotorlab.errors import RotorlabError
 VARY = {"mass": 0.10, "inertia": 0.10, "delay": 0.02, "wind": 5.0}
 VARY_UNITS = {"mass": "relative", "inertia": "relative", "delay": "s", "wind": "m/s"}
 WIND_OPTION = {"gust": "mean_wind_mps", "hover": "wind_mps", "prbs-flight": "wind_mps"}
-#: units of the batch tables' sample columns (a metric column carries its unit in its name, e.g. rise_time_s)
-SAMPLE_UNITS = {"sample": "1", "mass_scale": "1", "inertia_scale": "1", "extra_delay_s": "s", "wind_mps": "m/s",
-                "run_seed": "1"}
+#: units of the batch tables' sample columns besides the draw's (rotorlab.sim.randomize.DRAW_UNITS; a metric
+#: column carries its unit in its name, e.g. rise_time_s)
+SAMPLE_UNITS = {"sample": "1", "run_seed": "1"}
 
 
 
@@ -114,7 +114,7 @@ def run(args) -> int:
     from rotorlab import atomic
     from rotorlab.executor import get_executor
     from rotorlab.logformat import write_parquet
-    from rotorlab.sim import scenarios
+    from rotorlab.sim import randomize, scenarios
     from rotorlab.sim.runner import resolve_gains
     from rotorlab.vehicles import load_vehicle
 
@@ -139,7 +139,7 @@ def run(args) -> int:
             keys = sorted(set().union(*batch))
             tbl = pa.table({k: [r.get(k) for r in batch] for k in keys})
             write_parquet(out / f"batch-{b0 // args.batch:04d}.parquet", tbl,
-                          {k: u for k, u in SAMPLE_UNITS.items() if k in keys},
+                          {k: u for k, u in {**SAMPLE_UNITS, **randomize.DRAW_UNITS}.items() if k in keys},
                           {"scenario": args.scenario, "vehicle": v.name, "gains": gains.name, "seed": args.seed})
             rows += batch
     summary = {"scenario": args.scenario, "vehicle": v.name, "gains": gains.name, "n": args.n, "seed": args.seed,
