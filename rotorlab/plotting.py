@@ -19,10 +19,10 @@ import pyarrow.parquet as pq
 from rotorlab import atomic
 from rotorlab.errors import DataError
 from rotorlab.logformat import decode_metadata
-from rotorlab.lti import freqresp, is_discrete
 
 # matplotlib is imported by pyplot() on the first figure: a heavy import, and the Agg backend must be chosen
-# before pyplot loads.
+# before pyplot loads. rotorlab.lti (python-control, about 1.7 s) is imported by plot_bode alone: `rotorlab plot`
+# and `rotorlab compare` draw logs and do not need it.
 
 __all__ = ["FIG_WIDTH_IN", "DPI", "pyplot", "figure", "save", "read_run", "run_panels", "plot_runs", "plot_bode",
            "label"]
@@ -184,6 +184,8 @@ def plot_bode(models, path, w_rad_s=None, title: str | None = None) -> Path:
     """Bode diagram of ``models``: ``[(label, sys, delay_s, (in_unit, out_unit))]``; magnitude in dB of the
     gain in output units per input unit, phase in deg including the input delay, frequency in rad/s (up to
     the Nyquist frequency of discrete models)."""
+    from rotorlab.lti import freqresp, is_discrete
+
     nyq = min((np.pi / float(s.dt) for _, s, _, _ in models if is_discrete(s)), default=None)
     if w_rad_s is None:
         w_rad_s = np.logspace(-1, np.log10(0.999 * nyq if nyq else 1000.0), 400)
