@@ -104,7 +104,8 @@ def run_folder_lock(out: Path):
 
 def _open_run_folder(out: Path, vehicle: str) -> dict:
     """The manifest of ``out`` (a fresh one for a new or empty folder), refusing a folder that is not a
-    compatible run of ``vehicle``. Called with the run-folder lock held."""
+    compatible run of ``vehicle``. Called before the lock is taken (a foreign folder is refused before anything
+    is written into it) and again under the lock, where the manifest read is the one the run updates."""
     man = read_manifest(out)
     if man is None:
         if out.exists() and any(p.name != LOCK_NAME for p in out.iterdir()):
@@ -125,27 +126,28 @@ def _open_run_folder(out: Path, vehicle: str) -> dict:
     return man
 
 
-def _is_cached(final: Path, h: str, committed: dict | None, log=print) -> bool:
-    """Whether the committed stage folder ``final`` was built from inputs hashing to ``h`` and its files are
-    still the ones committed: their hash must equal the ``output_hash`` recorded in stage.json at the commit and
-    in the manifest (``committed``, its entry for the stage, when it has one). A stage whose files were edited,
-    truncated or half-overwritten is reported and recomputed, never reused."""
+def _cached_hash(final: Path, h: str, committed: dict | None, log=print) -> str | None:
+    """The output hash of the committed stage folder ``final`` if it was built from inputs hashing to ``h`` and
+    its files are still the ones committed: their hash must equal the ``output_hash`` recorded in stage.json at
+    the commit and in the manifest (``committed``, its entry for the stage, when it has one). A stage whose files
+    were edited, truncated or half-overwritten is reported and recomputed, never reused (None)."""
     done = final / "stage.json"
     if not done.exists():
-        return False
+        return None
     try:
         doc = json.loads(done.read_text(encoding="utf-8"))
     except (ValueError, UnicodeDecodeError):
         log(f"  {done} is not readable JSON: recomputing the stage")
-        return False
+        return None
     if not isinstance(doc, dict) or doc.get("hash") != h:
-        return False
+        return None
     same_inputs = isinstance(committed, dict) and committed.get("hash") == h  # not an entry of an older run
     recorded = {doc.get("output_hash")} | ({committed.get("output_hash")} if same_inputs else set())
-    if recorded != {dir_hash(final)}:
+    got = dir_hash(final)
+    if recorded != {got}:
         log(f"  {final}: files differ from those committed (output hash mismatch): recomputing the stage")
-        return False
-    return True
+        return None
+    return got
 
 
 def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
@@ -183,8 +185,9 @@ def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log) -> dict:
             ups = {u: out_hashes.get(u) or (dir_hash(stage_dir(out, u)) if stage_dir(out, u).exists() else None)
                    for u in REGISTRY[stage].upstream}
             h = stage_hash(stage, opts, s, fp, ups)
-            if _is_cached(final, h, man["stages"].get(stage), log):
-                out_hashes[stage] = dir_hash(final)
+            cached = _cached_hash(final, h, man["stages"].get(stage), log)
+            if cached is not None:
+                out_hashes[stage] = cached
                 log(f"[{i}/{len(STAGES)}] {stage:<12} cached ({final})")
                 continue
             if executor is None:

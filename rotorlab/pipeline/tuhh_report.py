@@ -8,12 +8,6 @@ import math
 
 DESIGN_ORDER = ("modified-pid", "hinf-loopshaping", "hinf-loopshaping-aw")
 AXES2 = ("roll", "pitch")
-#: ref. 002 sec. 5-6 (figs. 5, 6, 8) and table 1 (p, z as root magnitudes)
-PUBLISHED = {"rise_s": 0.2, "peak_10pct_deg": {"hinf-loopshaping": 4.0, "modified-pid": 15.0},
-             "recovery_later_s": 4.0,
-             "table1": {"roll": {"J": 0.0181, "p": 27.106, "Td": 0.024},
-                        "pitch": {"J": 0.0196, "p": 26.963, "Td": 0.028},
-                        "yaw": {"J": 0.0273, "p": 7.171, "z": 2.434, "Td": 0.016}}}
 #: metric names every design entry of the disturbance experiments carries (None when not defined, e.g. a run
 #: that never recovered)
 REQUIRED = ("disturbance.peak_deviation", "disturbance.recovery_time_s")
@@ -22,13 +16,11 @@ REQUIRED = ("disturbance.peak_deviation", "disturbance.recovery_time_s")
 def complete_validation(validation: dict, raw: dict) -> None:
     """Put back what flattening drops for the design experiments: ``stopped`` (a string or None) and the
     required metrics of both axes (None where undefined)."""
-    for sc in ("design-step", "input-disturbance", "saturating-disturbance"):
-        for d, m in validation.get(sc, {}).items():
-            m["stopped"] = raw[sc][d].get("stopped")
-            if sc != "design-step":
-                for ax in AXES2:
-                    for k in REQUIRED:
-                        m.setdefault(f"{ax}.{k}", None)
+    for sc in ("input-disturbance", "saturating-disturbance"):
+        for m in validation.get(sc, {}).values():
+            for ax in AXES2:
+                for k in REQUIRED:
+                    m.setdefault(f"{ax}.{k}", None)
     for sc, per in validation.items():
         for name, m in per.items():
             m.setdefault("stopped", raw.get(sc, {}).get(name, {}).get("stopped"))
@@ -165,4 +157,4 @@ def delay_note(s: dict) -> str:
             "does not apply")
 
 
-__all__ = ["complete_validation", "design_claims", "headline", "section", "delay_note", "PUBLISHED"]
+__all__ = ["complete_validation", "design_claims", "headline", "section", "delay_note"]

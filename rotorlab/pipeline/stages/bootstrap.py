@@ -42,21 +42,16 @@ def run(ctx: StageContext) -> dict:
     if "pbsid" not in ident["models"]:
         raise PipelineError("the bootstrap needs the PBSID model: " + ident["skipped"].get("pbsid", "missing"))
     st = ident["models"]["pbsid"]["settings"]
-    log = ctx.run.experiment_log("id")
-    br = bootstrap(log["u_lon"], log["q"], _identify(st), n_boot=ctx.settings["n_boot"], seed=ctx.seed,
-                   n_jobs=ctx.executor.workers, mapper=ctx.mapper("bootstrap"))
     w = bode_grid(N_BODE)
-    W = fit_wdelta(br.nominal.sys, [m.sys for m in br.models], w, order=W_DELTA_ORDER)
-    save_model(ctx.work / "w_delta.json", W, input=["delta"], output=["q"])
+    br, W, Wmag, spread = _bootstrap_wdelta(ctx, ctx.run.experiment_log("id"), st, ctx.seed, w, "testbed",
+                                            "bootstrap")
     flight = _own(ctx, w, "pbsid-flight", "flight", "flight", 1)
     pair = _own(ctx, w, "pbsid-testbed-n2", "id", "testbed-n2", 2)
     band = br.band(w, BAND_LEVEL)
     stack = {k: np.stack([np.asarray(getattr(m.sys, k), float) for m in br.models]) for k in "ABCD"}
     np.savez(ctx.work / "replicas.npz", w_rad_s=w, mag_lo=band["mag_lo"][:, 0, 0], mag_hi=band["mag_hi"][:, 0, 0],
              phase_lo=band["phase_lo"][:, 0, 0], phase_hi=band["phase_hi"][:, 0, 0],
-             spread=additive_spread(br.nominal.sys, [m.sys for m in br.models], w),
-             poles_c=br.poles_continuous(), **stack)
-    Wmag = np.abs(freqresp(W, w)[:, 0, 0])
+             spread=spread, poles_c=br.poles_continuous(), **stack)
     return {"model": "pbsid", "n_boot": ctx.settings["n_boot"], "order": int(st["order"]),
             "w_delta_order": int(W.nstates), "w_delta_peak": float(Wmag.max()), "w_delta_dc": float(Wmag[0]),
             "poles_c_median": [[float(z.real), float(z.imag)] for z in np.median(br.poles_continuous().real, 0)
@@ -72,18 +67,25 @@ def _own(ctx: StageContext, w, model: str, log_name: str, which: str, stream: in
     if not ctx.run.model_path(model).exists() or not ctx.run.experiment_log_path(log_name).exists():
         return None
     st = ctx.run.identified(model).settings
-    log = ctx.run.experiment_log(log_name)
     # an independent seed stream: these innovations share nothing with the nominal bootstrap's
-    br = bootstrap(log["u_lon"], log["q"], _identify(st), n_boot=ctx.settings["n_boot"],
-                   seed=int(np.random.SeedSequence([ctx.seed, stream]).generate_state(1)[0]),
-                   n_jobs=ctx.executor.workers, mapper=ctx.mapper(f"{which} bootstrap"))
-    W = fit_wdelta(br.nominal.sys, [m.sys for m in br.models], w, order=W_DELTA_ORDER)
-    save_model(ctx.work / f"w_delta-{which}.json", W, input=["delta"], output=["q"])
-    Wmag = np.abs(freqresp(W, w)[:, 0, 0])
-    spread = additive_spread(br.nominal.sys, [m.sys for m in br.models], w)
+    seed = int(np.random.SeedSequence([ctx.seed, stream]).generate_state(1)[0])
+    _, _, Wmag, spread = _bootstrap_wdelta(ctx, ctx.run.experiment_log(log_name), st, seed, w, which,
+                                           f"{which} bootstrap")
     np.savez(ctx.work / f"replicas-{which}.npz", w_rad_s=w, spread=spread)
     return {"model": model, "order": int(st["order"]), "w_delta_peak": float(Wmag.max()),
             "w_delta_dc": float(Wmag[0])}
+
+
+def _bootstrap_wdelta(ctx: StageContext, log, settings: dict, seed: int, w, which: str, desc: str):
+    """Bootstrap of the PBSID model with ``settings`` on ``log`` (u_lon -> q) and its ``W_delta``, saved where
+    :meth:`RunFolder.w_delta_path` reads it. Returns the bootstrap, ``W_delta``, ``|W_delta|`` and the
+    replicas' additive spread on ``w``."""
+    br = bootstrap(log["u_lon"], log["q"], _identify(settings), n_boot=ctx.settings["n_boot"], seed=seed,
+                   n_jobs=ctx.executor.workers, mapper=ctx.mapper(desc))
+    replicas = [m.sys for m in br.models]
+    W = fit_wdelta(br.nominal.sys, replicas, w, order=W_DELTA_ORDER)
+    save_model(ctx.work / ctx.run.w_delta_path(which).name, W, input=["delta"], output=["q"])
+    return br, W, np.abs(freqresp(W, w)[:, 0, 0]), additive_spread(br.nominal.sys, replicas, w)
 
 
 STAGE = Stage("bootstrap", upstream=("experiments", "identify"), settings=("n_boot",), run=run)

@@ -141,13 +141,20 @@ def _transfer(ctx: StageContext, sets, nominal):
                           "loss_pct": 100.0 * (b - a) / a if math.isfinite(a) and math.isfinite(b) else None}
         if Wf is None:
             continue
-        try:
-            r = h_lim_analysis(Wf, control_sensitivity_cascade(flight, gs["pitch"], DT_S), flight.G)
-            hl[name], peak[name] = r.h_lim, r.peak_rad_s
-        except DataError as exc:  # the set does not stabilise the flight model: no robustness to speak of
-            hl[name], peak[name] = None, None
-            transfer[name]["flight_loop"] = str(exc)
+        r, err = _h_lim_or_error(Wf, flight, gs["pitch"])
+        hl[name], peak[name] = (r.h_lim, r.peak_rad_s) if r is not None else (None, None)
+        if err:
+            transfer[name]["flight_loop"] = err
     return transfer, hl, peak
+
+
+def _h_lim_or_error(W, plant, axis_gains):
+    """``(h_lim analysis, None)`` of the cascade with ``axis_gains`` around ``plant``, or ``(None, reason)`` when
+    the set does not stabilise that model: no robustness to speak of."""
+    try:
+        return h_lim_analysis(W, control_sensitivity_cascade(plant, axis_gains, DT_S), plant.G), None
+    except DataError as exc:
+        return None, str(exc)
 
 
 def _h_lim_testbed_n2(ctx: StageContext, sets) -> dict:
@@ -160,10 +167,8 @@ def _h_lim_testbed_n2(ctx: StageContext, sets) -> dict:
     tb, W2 = ctx.run.plant("pbsid-testbed-n2", "testbed-n2"), ctx.run.w_delta("testbed-n2")
     out = {}
     for name, gs in sets.items():
-        try:
-            out[name] = h_lim_analysis(W2, control_sensitivity_cascade(tb, gs["pitch"], DT_S), tb.G).h_lim
-        except DataError:  # the set does not stabilise this model: no robustness to speak of
-            out[name] = None
+        r, _ = _h_lim_or_error(W2, tb, gs["pitch"])
+        out[name] = r.h_lim if r is not None else None
     return out
 
 
