@@ -170,6 +170,8 @@ def _check_setup(name: str, setup: scenarios.Setup) -> None:
         why = "drives the actuators itself (bench test)"
     elif setup.mode not in ("cascade", "open-loop"):
         why = f"uses the '{setup.mode}' mode"
+    elif setup.controller:
+        why = "flies its own controller in place of the cascade"
     elif setup.excitation or setup.schedule or setup.on_tick is not None or setup.extra_columns:
         why = "uses excitation, a gain schedule or scenario-specific logging"
     else:
@@ -332,18 +334,21 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
                 tr["wind_u"][k], tr["wind_v"][k], tr["wind_w"][k] = w_ned.T
             set_wind(opt_wind, ctrl, xmat[:, airframe], w, aero)
         # ---- physics: one control period, sensors at the tick
+        failed = np.zeros(n, dtype=bool)
         try:
             batch.step(ids, nstep=sim.n_substeps, stage=stage_vel)
         except SimulationError as exc:
             for i in exc.ids:
                 stopped[int(i)] = f"MuJoCo error at t = {t:.3f} s: {batch.error(int(i))}"
-        # ---- checks (Simulator.check: MuJoCo's divergence warnings, then StopCheck; the rigs read qpos alone)
+                failed[int(i)] = True
+        # ---- checks (Simulator.check: MuJoCo's divergence warnings, then StopCheck; the rigs read qpos alone),
+        # vectorised to find the rows that stop, whose reasons are then formed one by one
         bad = np.zeros(n, dtype=bool)
         for wi in DIVERGENCE_WARNINGS:
             bad |= batch.warning[:, int(wi), 0] > 0
         t_next = t + dt
         new = []
-        for i in np.flatnonzero(active):
+        for i in np.flatnonzero(active & (failed | bad | stops.rig_hits(qpos))):
             if stopped[i] is None:
                 stopped[i] = diverged_reason(t_next) if bad[i] else stops.reason(qpos[i], None, None, t_next)
             if stopped[i] is not None:

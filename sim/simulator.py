@@ -88,6 +88,12 @@ class StopCheck:
         self.floor_z = FLOOR_CLEARANCE_M + scene.vehicle.body_size_m[2]
         self.cos_tilt_limit = math.cos(math.radians(FREE_FLIGHT_TILT_LIMIT_DEG))
 
+    def rig_hits(self, qpos) -> np.ndarray:
+        """Which rows of ``qpos`` (a row per simulation) hold a rig at its stop (:meth:`reason`'s rig test over
+        a batch; the batched runner asks :meth:`reason` only for these rows)."""
+        a, b = self.rig_qadr
+        return at_rig_stop((qpos[:, a] + qpos[:, b]) * RAD2DEG, self.stop_deg)
+
     def reason(self, qpos, xmat, xpos, t: float) -> str | None:
         """Why to stop at time ``t`` (s), or None, from one simulation's ``qpos`` and its airframe's ``xmat``
         (9,) and ``xpos`` (3,) (read in free flight only)."""

@@ -194,6 +194,8 @@ def test_unsupported_requests_are_named():
         run_batch("rope-pull", n=2, duration_s=0.1)
     with pytest.raises(ConfigError, match="scene"):
         run_batch("gust", n=2, scene="free-flight", duration_s=0.1)
+    with pytest.raises(ConfigError, match="own controller"):  # the vector flight software flies the cascade only
+        run_batch("prbs-periodic", "tuhh-quad", n=2, duration_s=10.2)
     with pytest.raises(UnknownNameError, match="delay"):
         run_batch("setpoint", n=2, vary={"delay": 0.1}, duration_s=0.1)
     with pytest.raises(ConfigError, match="vary.delay_s"):
