@@ -35,7 +35,8 @@ from rotorlab.vehicles import load_vehicle
 
 AXES = ("roll", "pitch", "yaw")
 SCENE = {"roll": "roll-rig", "pitch": "pitch-rig", "yaw": "free-flight"}
-COLUMNS = {"roll": ("phi_ref", "phi", "p"), "pitch": ("theta_ref", "theta", "q"), "yaw": ("psi_ref", "psi", "r")}
+#: [set-point, angle, rate] columns of each axis' log (the identification scenario's)
+COLUMNS = {axis: prbs_periodic.AXES[axis][:3] for axis in AXES}
 #: rotors that drive each axis (1-based; plus layout: pitch 1/3, roll 2/4, yaw all four)
 ROTORS = {"roll": (2, 4), "pitch": (1, 3), "yaw": (1, 2, 3, 4)}
 #: where the fit starts: away from the truth (and from ref. 002's table), so a converged fit means something
@@ -135,7 +136,7 @@ def small_signal_truth(vehicle, axis: str, options: dict | None = None) -> dict:
     for _ in range(int(round(dt / G.dt))):  # the command held over the physics steps of one tick
         Ah, Bh = A @ Ah, A @ Bh + B
     r, n = prbs_periodic.sequence(options, dt)
-    kp, kd = _pd_gains(axis, options)
+    kp, kd = prbs_periodic.pd_gains(axis, options)
     R = np.fft.rfft(r)
     Y = np.zeros((R.size, 2), dtype=complex)
     eye = np.eye(A.shape[0])
@@ -149,13 +150,6 @@ def small_signal_truth(vehicle, axis: str, options: dict | None = None) -> dict:
     res = oe_fit_closed_loop(structure(v, axis), ct.ss([], [], [], pd.D, dt), r, y, dt, feedback_output=(0, 1),
                              periods=2, theta0=physical(v, axis), reweight=False)
     return {**physical(v, axis), **{k: float(res.params[k]) for k in res.free}}
-
-
-def _pd_gains(axis: str, options: dict) -> tuple[float, float]:
-
-    o = {**prbs_periodic.DEFAULTS, **options}
-    return (float(o["kp"] if o["kp"] is not None else prbs_periodic.AXES[axis][4]),
-            float(o["kd"] if o["kd"] is not None else prbs_periodic.AXES[axis][5]))
 
 
 def structure(vehicle, axis: str):

@@ -63,14 +63,23 @@ def pd_controller(axis: str, kp: float, kd: float, dt_s: float) -> ControllerSpe
                           description=f"ref. 002 identification PD on {axis}: kp {kp} %/deg, kd {kd} %/(deg/s)")
 
 
-def setup(ctx: Context) -> Setup:
-    o = merged_options(ctx, DEFAULTS)
-    axis = axis_of(ctx.scene)
-    ref, _, _, _, kp0, kd0 = AXES[axis]
+def pd_gains(axis: str, options: dict) -> tuple[float, float]:
+    """The identification PD's ``(kp, kd)`` on ``axis``: the options' (merged with :data:`DEFAULTS`), else the
+    axis default of :data:`AXES`."""
+    o = {**DEFAULTS, **options}
+    _, _, _, _, kp0, kd0 = AXES[axis]
     kp = float(o["kp"] if o["kp"] is not None else kp0)
     kd = float(o["kd"] if o["kd"] is not None else kd0)
     if not (kp > 0 and kd >= 0):
         raise ConfigError(field="options.kp/kd", expected="a stabilising PD: kp > 0, kd >= 0", got=(kp, kd))
+    return kp, kd
+
+
+def setup(ctx: Context) -> Setup:
+    o = merged_options(ctx, DEFAULTS)
+    axis = axis_of(ctx.scene)
+    ref = AXES[axis][0]
+    kp, kd = pd_gains(axis, o)
     r, n = sequence(o, ctx.dt_s)
     periods = int(round(ctx.duration_s / ctx.dt_s)) // n
     if periods < 2:
