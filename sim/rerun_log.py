@@ -29,6 +29,7 @@ import numpy as np
 
 from rotorlab import atomic
 from rotorlab.errors import ConfigError
+from rotorlab.logformat import read_parquet
 from rotorlab.scenes import build_scene
 
 # rerun is imported where a recording is written: a heavy import that only recordings need.
@@ -116,6 +117,18 @@ def _geometry(rec, model, body_paths) -> None:
         else:
             shape = rr.Cylinders3D(radii=d[:, 0], lengths=2 * d[:, 1], centers=b["pos"], fill_mode="solid", **common)
         rec.log(path, shape, static=True)
+
+
+class TableLog:
+    """A run log read back from its Parquet file: what :func:`record_run` reads (``units`` and ``log[name]``)
+    and the run's information (``meta``)."""
+
+    def __init__(self, path):
+        self._cols, units, self.meta = read_parquet(path)
+        self.units = units or {c: "" for c in self._cols}
+
+    def __getitem__(self, name):
+        return self._cols[name]
 
 
 def _log_columns(rec, log) -> dict:
@@ -233,4 +246,4 @@ def record_run(result_or_log, path, *, scene: str | None = None, vehicle=None, i
     return p
 
 
-__all__ = ["record_run", "check_rrd_path", "TIMELINE", "GROUPS"]
+__all__ = ["record_run", "check_rrd_path", "TableLog", "TIMELINE", "GROUPS"]

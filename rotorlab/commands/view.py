@@ -41,19 +41,6 @@ def add_parser(sub):
     return p
 
 
-class _TableLog:
-    """The two things :func:`record_run` reads from a log (``units`` and ``log[name]``), over a Parquet table."""
-
-    def __init__(self, path: Path):
-        from rotorlab.logformat import read_parquet
-
-        self._cols, units, _ = read_parquet(path)
-        self.units = units or {c: "" for c in self._cols}
-
-    def __getitem__(self, name):
-        return self._cols[name]
-
-
 def find_recordings(path) -> list[Path]:
     """The ``.rrd`` files to open for ``path``: the file itself, a run folder's recording (written from its
     log when there is none), or a pipeline folder's ``report/recordings/*.rrd``."""
@@ -75,11 +62,11 @@ def find_recordings(path) -> list[Path]:
     if not log_path.is_file():
         raise CLIError(f"{p} has no .rrd recording (looked in {p}, " +
                        ", ".join(str(p / s) for s in PIPELINE_RECORDINGS) + ") and no log.parquet to make one from")
-    from rotorlab.sim.rerun_log import record_run
+    from rotorlab.sim.rerun_log import TableLog, record_run
 
     info = json.loads(info_path.read_text()) if info_path.is_file() else {}
     try:
-        return [record_run(_TableLog(log_path), p / RECORDING, info=info)]
+        return [record_run(TableLog(log_path), p / RECORDING, info=info)]
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
 

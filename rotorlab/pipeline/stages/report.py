@@ -21,14 +21,12 @@ from scipy.signal import welch
 from rotorlab import __version__, atomic
 from rotorlab.gains import save_gains
 from rotorlab.keymetrics import flatten_metrics, fmt, key_rows
-from rotorlab.logformat import read_parquet
 from rotorlab.lti import d2c_zoh, freqresp
 from rotorlab.pipeline import tuhh_report
 from rotorlab.pipeline.runfolder import Stage, StageContext
 from rotorlab.pipeline.settings import DT_S
 from rotorlab.plotting import figure, label, plot_runs, read_run, save
-from rotorlab.sim.log import RunLog
-from rotorlab.sim.rerun_log import record_run
+from rotorlab.sim.rerun_log import TableLog, record_run
 
 __all__ = ["STAGE", "write_report", "render_figures", "flatten_metrics", "compare_sets", "claims", "headline_rows",
            "HEADLINE"]
@@ -412,13 +410,10 @@ def _recordings(ctx: StageContext, sets, summary) -> dict:
         rank = {s: i for i, s in enumerate(order)}
         paths = sorted(paths, key=lambda q: (rank.get(q.stem.split("__")[-1], len(rank)), q.stem))[:limit]
     for p in paths:
-        cols, units, meta = read_parquet(p)
-        log = RunLog({k: u for k, u in units.items() if k != "t"}, len(cols["t"]))
-        for i in range(len(cols["t"])):
-            log.append(cols["t"][i], {k: cols[k][i] for k in cols if k != "t"})
+        log = TableLog(p)
         try:
-            path = record_run(log, ctx.work / "recordings" / f"{p.stem}.rrd", scene=meta["scene"],
-                              vehicle=ctx.vehicle, info=meta)
+            path = record_run(log, ctx.work / "recordings" / f"{p.stem}.rrd", scene=log.meta["scene"],
+                              vehicle=ctx.vehicle, info=log.meta)
             out[p.stem] = f"recordings/{Path(path).name}"
         except Exception as exc:
             summary["skipped"][f"recording.{p.stem}"] = f"skipped: {type(exc).__name__}: {exc}"
