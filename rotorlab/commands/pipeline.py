@@ -39,7 +39,7 @@ def add_parser(sub):
 
 def run(args) -> int:
     from rotorlab.pipeline import PipelineOptions, run_pipeline
-    from rotorlab.vehicles import VEHICLES_DIR, load_vehicle
+    from rotorlab.vehicles import VEHICLES_DIR, load_vehicle, vehicle_path
 
     level = "tiny" if args.tiny else ("quick" if args.quick else "full")
     vehicle = args.vehicle
@@ -47,8 +47,9 @@ def run(args) -> int:
         spec = load_vehicle(vehicle)
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
-    if not (VEHICLES_DIR / str(vehicle) / "vehicle.toml").is_file():
-        # a path: absolute, so every worker (a Dask worker may run elsewhere) reads the same file
+    if vehicle_path(vehicle) != VEHICLES_DIR / str(vehicle) / "vehicle.toml":
+        # a path (vehicle_path's rule: a local folder of that name wins over a shipped name): absolute, so every
+        # worker (a Dask worker may run elsewhere) reads the same file that load_vehicle just read
         vehicle = str(Path(vehicle).resolve())
     # named by the vehicle's name, never its path (`--vehicle /tmp/x.toml` made runs/pipeline-/tmp/...)
     out = Path(args.out or f"runs/pipeline-{spec.name}{'' if level == 'full' else '-' + level}-seed{args.seed}")

@@ -129,7 +129,7 @@ def run(args) -> int:
 
             controller = []
             for c in args.controller:
-                r = resolve_controller(c, args.vehicle)
+                r = resolve_controller(c, vehicle)
                 controller.extend(r if isinstance(r, list) else [r])
         res = run_scenario(args.scenario, vehicle, scene=args.scene, gains=args.gains, seed=args.seed,
                            duration_s=args.duration, out=out, options=parse_options(args.option),
