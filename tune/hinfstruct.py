@@ -155,19 +155,10 @@ class Channel:
         self.Pgrid = self.plant_at(self.grid)
 
     def __getstate__(self):
-        # python-control models do not pickle (a lambda inside); carry their matrices to worker processes
+        # the models travel to worker processes by rotorlab.lti's StateSpace reducer
         d = self.__dict__.copy()
         d.pop("_basis", None)  # keyed by object ids, which do not survive the trip
-        d["P"] = _ss_state(self.P)
-        if isinstance(self.weight, (ct.StateSpace, ct.TransferFunction)):
-            d["weight"] = ("ss", _ss_state(lti.as_ss(self.weight)))
         return d
-
-    def __setstate__(self, d):
-        d["P"] = _ss_from_state(d["P"])
-        if isinstance(d["weight"], tuple) and d["weight"][0] == "ss":
-            d["weight"] = _ss_from_state(d["weight"][1])
-        self.__dict__.update(d)
 
     def _weight(self, w):
         if self.weight is None:
@@ -191,15 +182,6 @@ class Channel:
         pts = self.points(w)
         X = np.linalg.solve(pts[:, None, None] * np.eye(A.shape[0]) - A, np.broadcast_to(B, (w.size,) + B.shape))
         return C @ X + D
-
-
-def _ss_state(sys):
-    return tuple(np.asarray(M, float) for M in (sys.A, sys.B, sys.C, sys.D)) + (float(sys.dt or 0.0),)
-
-
-def _ss_from_state(st):
-    A, B, C, D, dt = st
-    return ct.ss(A, B, C, D, dt) if dt else ct.ss(A, B, C, D)
 
 
 def closed_loop(P, nmeas: int, ncon: int, K) -> ct.StateSpace:
@@ -462,14 +444,9 @@ class _Problem:
 
     def __getstate__(self):
         d = self.__dict__.copy()
-        d["stab"] = [(_ss_state(P), nm, nc) for P, nm, nc in self.stab]
         d["_peak_cache"] = (None, None)
         d["_mat_cache"] = (None, None, None)
         return d
-
-    def __setstate__(self, d):
-        d["stab"] = [(_ss_from_state(st), nm, nc) for st, nm, nc in d["stab"]]
-        self.__dict__.update(d)
 
     def exact_peak(self, theta):
         """(H-inf norm, peak frequency rad/s) of the first channel's closed loop by ab13dd (rotorlab.lti)."""
