@@ -51,6 +51,11 @@ def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
+def _did_you_mean(value: str, choices) -> str | None:
+    close = difflib.get_close_matches(value, list(choices), n=1)
+    return f"did you mean '{close[0]}'?" if close else None
+
+
 class Table:
     """Strict, typed access to one TOML table; errors name the file and the dotted field.
 
@@ -164,10 +169,7 @@ class Table:
         if not given:
             return v
         if not isinstance(v, str) or (choices and v not in choices):
-            hint = None
-            if isinstance(v, str) and choices:
-                close = difflib.get_close_matches(v, list(choices), n=1)
-                hint = f"did you mean '{close[0]}'?" if close else None
+            hint = _did_you_mean(v, choices) if isinstance(v, str) and choices else None
             raise self.error(key, expected=f"one of {list(choices)}" if choices else "a string", got=v, hint=hint)
         return v
 
@@ -177,10 +179,13 @@ class Table:
             raise self.error(key, expected="true or false (TOML booleans, unquoted)", got=v)
         return v
 
-    def strlist(self, key, default=REQUIRED) -> list:
+    def strlist(self, key, default=REQUIRED, choices=None) -> list:
         v, given = self._get(key, default, "a list of strings")
         if given and (not isinstance(v, list) or not all(isinstance(x, str) for x in v)):
             raise self.error(key, expected="a list of strings", got=v)
+        for x in (v if given and choices else ()):
+            if x not in choices:
+                raise self.error(key, expected=f"names among {list(choices)}", got=x, hint=_did_you_mean(x, choices))
         return list(v) if v is not None else v
 
     # -- strictness --
