@@ -17,7 +17,8 @@ Options
 -------
 ``protocol`` : str        ``quasi-open-loop`` (default) or ``position-hold``
 ``segment_s``, ``holds``, ``amplitudes_pct``: the campaign, as in ``prbs`` (default [7, 9, 11] %, designed holds)
-``wind_mps`` : float      mean wind, headwind (default 2.5, the published flight test's mean wind)
+``wind_mps`` : float      mean wind, headwind (default 2.5 m/s: ref. 000 does not give the wind of the P2-A2's
+                          in-flight identification; this is the mean wind of its A2-MINI/B flight test)
 ``turbulence`` : bool     Dryden turbulence on (default True)
 """
 
