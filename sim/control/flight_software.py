@@ -59,11 +59,6 @@ AXES = ("roll", "pitch", "yaw")
 _AXIS_CMD = {"roll": "u_lat", "pitch": "u_lon", "yaw": "u_yaw"}
 
 
-def _clip(x: float, lo: float, hi: float) -> float:
-    # one simulation: a Python comparison is several times cheaper than np.clip on a float
-    return hi if x > hi else (lo if x < lo else x)
-
-
 def _latch(x):
     """A set-point latched to a measurement: a float, or a copy of the array of many simulations."""
     return float(x) if np.ndim(x) == 0 else np.array(x, dtype=float)
@@ -118,7 +113,7 @@ class FlightSoftware:
             self.attitude = AttitudeController(gains, dt, limits, antiwindup, schedule)
             self.sup_roll = Supervisor(sup.limit_deg, sup.engage_frac, sup.kp, sup.kd, sup.u_limit_pct)
             self.sup_pitch = Supervisor(sup.limit_deg, sup.engage_frac, sup.kp, sup.kd, sup.u_limit_pct)
-            self._clip, self._mix = _clip, mixer.mix
+            self._mix = mixer.mix
         else:
             unsupported = [name for name, asked in (("mode 'position'", mode == "position"), ("schedule", schedule),
                                                     ("excitation", excitation), ("plugins", plugins),
@@ -129,7 +124,7 @@ class FlightSoftware:
                                   got=", ".join(unsupported))
             self.attitude = VectorAttitudeController(gains, n, dt, limits)
             self.sup_roll = self.sup_pitch = VectorSupervisor(sup)  # stateless
-            self._clip, self._mix = np.clip, mixer.mix_many
+            self._mix = mixer.mix_many
         self.position_gains = position_gains or PositionGains()
         self.position = PositionHold(self.position_gains, dt)
         self.altitude = AltitudeHold(self.position_gains, dt)
@@ -307,11 +302,18 @@ class FlightSoftware:
                     sig.update(out)
             u_col, u_lat, u_lon, u_yaw = sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"]
 
-        lim, ylim, mx, clip = self.u_limit_pct, self.yaw_u_limit_pct, self.mixer, self._clip
-        u_lat = clip(u_lat, -lim, lim)
-        u_lon = clip(u_lon, -lim, lim)
-        u_yaw = clip(u_yaw, -ylim, ylim)
-        u_col = clip(u_col, mx.out_min, mx.out_max)
+        lim, ylim, lo, hi = self.u_limit_pct, self.yaw_u_limit_pct, self.mixer.out_min, self.mixer.out_max
+        if self.n is None:
+            # one simulation: Python comparisons, several times cheaper than np.clip or a call per command
+            u_lat = lim if u_lat > lim else (-lim if u_lat < -lim else u_lat)
+            u_lon = lim if u_lon > lim else (-lim if u_lon < -lim else u_lon)
+            u_yaw = ylim if u_yaw > ylim else (-ylim if u_yaw < -ylim else u_yaw)
+            u_col = hi if u_col > hi else (lo if u_col < lo else u_col)
+        else:
+            u_lat = np.clip(u_lat, -lim, lim)
+            u_lon = np.clip(u_lon, -lim, lim)
+            u_yaw = np.clip(u_yaw, -ylim, ylim)
+            u_col = np.clip(u_col, lo, hi)
         sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"] = u_col, u_lat, u_lon, u_yaw
         sig["rotor_pct"] = self._mix(u_col, u_lat, u_lon, u_yaw)
         last = self._last
