@@ -51,8 +51,8 @@ class WindDisturbance(Disturbance):
         winds = sim.wind_disturbances
         if winds[0] is not self:
             return {}  # the first wind disturbance logs the sum
-        w = total_wind_ned(winds, sim.time)
-        return {"wind_u": w[0], "wind_v": w[1], "wind_w": w[2]}
+        u, v, w = total_wind_ned(winds, sim.time).tolist()
+        return {"wind_u": u, "wind_v": v, "wind_w": w}
 
 
 class SampledWind(WindDisturbance):
@@ -70,13 +70,20 @@ class SampledWind(WindDisturbance):
         self._dt = sim.control_dt_s
         n = int(math.ceil(self.duration_s / self._dt)) + 1
         self._w = self.record_ned(rng, n, self._dt)
+        self._w_zup = self._w * _NED_TO_ZUP  # update's conversion, made once for the record
 
-    def wind_ned(self, t: float) -> np.ndarray:
+    def _index(self, t: float) -> int:
         k = int(round(t / self._dt))
         if k >= len(self._w):
             raise RotorlabError(f"the '{self.name}' record is {self.duration_s:g} s long; the run asked for t = {t:.3f} s "
                                 "(give the disturbance the run's duration)")
-        return self._w[k]
+        return k
+
+    def wind_ned(self, t: float) -> np.ndarray:
+        return self._w[self._index(t)]
+
+    def update(self, sim, t: float) -> None:
+        sim.wind_world += self._w_zup[self._index(t)]
 
 
 class MeanWind(WindDisturbance):
@@ -100,9 +107,13 @@ class MeanWind(WindDisturbance):
         self.speed_mps = float(speed_mps)
         self.from_deg = float(from_deg)
         self._w = speed_mps * toward_ned(from_deg) + np.array([0.0, 0.0, float(vertical_mps)])
+        self._w_zup = self._w * _NED_TO_ZUP  # update's conversion, made once
 
     def wind_ned(self, t: float) -> np.ndarray:
         return self._w
+
+    def update(self, sim, t: float) -> None:
+        sim.wind_world += self._w_zup
 
 
 __all__ = ["MeanWind", "WindDisturbance", "SampledWind", "WIND_COLUMNS", "toward_ned", "total_wind_ned"]
