@@ -44,8 +44,8 @@ from rotorlab.scenes import PHYSICS_DT_S, PREFIX
 from rotorlab.sim import randomize, scenarios
 from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance, total_wind_ned, toward_ned
 from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quats
-from rotorlab.sim.runner import BASE_COLUMNS, make_flight_software, resolve_gains
-from rotorlab.sim.simulator import DIVERGENCE_WARNINGS, Simulator, StopCheck, diverged_reason, set_rotor_ctrl, set_wind
+from rotorlab.sim.runner import BASE_COLUMNS, check_duration, make_flight_software, resolve_gains
+from rotorlab.sim.simulator import DIVERGENCE_WARNINGS, Simulator, diverged_reason, set_rotor_ctrl, set_wind
 from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
 
 #: scenes the batched runner supports (the rigs: cascade and open-loop modes without position hold)
@@ -248,8 +248,7 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     if scene not in SCENES:
         raise ConfigError("the batched runner runs the rig scenes", field="scene", expected=list(SCENES), got=scene)
     duration_s = float(duration_s if duration_s is not None else mod.DURATION_S)
-    if not duration_s > 0:
-        raise ConfigError(field="duration", expected="a duration > 0 s", got=duration_s)
+    n_ticks = check_duration(duration_s, v.control_dt_s, logs=n)
     seeds = _seeds(seeds, n)
     gsets = _gain_sets(v, gains, n)
     ctx = scenarios.Context(vehicle=v, scene=scene, gains=gsets if isinstance(gsets, GainSet) else gsets[0],
@@ -283,8 +282,8 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     # the run's flight software, as run_scenario builds it, flying the n simulations at once
     dt = sim.control_dt_s
     fs = make_flight_software(v, gsets, setup, dt, n=n)
-    stops = StopCheck(m, sim.scene)
-    thrust, spinup, aero = sim.scene.thrust_actuators, sim.scene.spinup_actuators, sim.scene.aero_actuators
+    stops, thrust, spinup, aero = sim.stops, sim.thrust_ids, sim.spinup_ids, sim.aero_ids
+    n_thrust = len(sim.scene.thrust_actuators)
 
     # IMU noise: per-simulation generators seeded as Simulator.reset seeds its own
     imu = sim.imu
@@ -297,7 +296,6 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     windy = bool(wind_dists) or bool(np.any(wind_sim_zup))
     opt_wind = batch.expand("opt.wind") if windy else None
 
-    n_ticks = int(round(duration_s / dt))
     columns = dict(BASE_COLUMNS)
     for dist in wind_dists:
         columns.update(dist.columns)
@@ -317,7 +315,7 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
         # ---- the scalar loop's tick (rotorlab.sim.runner): measure, flight software, rotor commands
         meas = imu.sample(sd, stream if noise and (noise_on is None or noise_on(t)) else None)
         out = fs.step(t, meas)
-        set_rotor_ctrl(ctrl, out["rotor_pct"], v, thrust, spinup)
+        set_rotor_ctrl(ctrl, out["rotor_pct"][:, :n_thrust], v, thrust, spinup)
         # ---- ground truth and log
         att_true = euler_deg_from_quats(xquat[:, airframe])
         R = xmat[:, airframe].reshape(n, 3, 3)

@@ -16,10 +16,10 @@ FLU_TO_FRD = np.array([1.0, -1.0, -1.0])
 AXES = ("roll", "pitch", "yaw")
 
 
-def euler_deg_from_quat(quat_wxyz) -> np.ndarray:
-    """Aerospace (roll, pitch, yaw) in degrees of a body (FLU) orientation in the z-up world."""
-    # plain floats: math on numpy scalars costs several times more, and this runs twice per tick
-    w, x, y, z = quat_wxyz.tolist() if hasattr(quat_wxyz, "tolist") else quat_wxyz
+def euler_deg(w: float, x: float, y: float, z: float) -> tuple[float, float, float]:
+    """Aerospace (roll, pitch, yaw) in degrees of a body (FLU) orientation in the z-up world, from its unit
+    quaternion's components (plain floats: math on numpy scalars costs several times more, and this runs twice
+    per tick)."""
     # rows of the rotation matrix that the angles need
     r00 = 1 - 2 * (y * y + z * z)
     r10 = 2 * (x * y + w * z)
@@ -29,7 +29,12 @@ def euler_deg_from_quat(quat_wxyz) -> np.ndarray:
     pitch = math.asin(max(-1.0, min(1.0, r20)))  # forward axis rising = nose up
     roll = math.atan2(r21, r22)  # left axis rising = right side down
     yaw = -math.atan2(r10, r00)  # heading turning clockwise seen from above = nose right
-    return np.array([roll * RAD2DEG, pitch * RAD2DEG, yaw * RAD2DEG])
+    return roll * RAD2DEG, pitch * RAD2DEG, yaw * RAD2DEG
+
+
+def euler_deg_from_quat(quat_wxyz) -> np.ndarray:
+    """:func:`euler_deg` of a quaternion ``(w, x, y, z)`` (array or sequence), as an array ``(3,)``."""
+    return np.array(euler_deg(*(quat_wxyz.tolist() if hasattr(quat_wxyz, "tolist") else quat_wxyz)))
 
 
 def euler_deg_from_quats(quat_wxyz) -> np.ndarray:

@@ -125,15 +125,16 @@ def memory_budget_bytes() -> int:
         return 8 << 30
 
 
-def check_duration(duration_s, control_dt_s: float, record_poses: bool = False) -> int:
+def check_duration(duration_s, control_dt_s: float, record_poses: bool = False, logs: int = 1) -> int:
     """Number of control ticks of a run of ``duration_s``; a ConfigError unless it is finite, at least one
-    control step, and its log fits in :func:`memory_budget_bytes`."""
+    control step, and its log (``logs`` of them: the batched runner's simulations) fits in
+    :func:`memory_budget_bytes`."""
     if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
         raise ConfigError(field="duration", expected="a finite duration > 0 s", got=duration_s)
     n_ticks = int(round(duration_s / control_dt_s))
     if n_ticks < 1:
         raise ConfigError(field="duration", expected=f"at least one control step ({control_dt_s} s)", got=duration_s)
-    per_tick = LOG_BYTES_PER_TICK + (POSE_BYTES_PER_TICK if record_poses else 0)
+    per_tick = (LOG_BYTES_PER_TICK + (POSE_BYTES_PER_TICK if record_poses else 0)) * logs
     need, budget = (n_ticks + 1) * per_tick, memory_budget_bytes()
     if need > budget:
         raise ConfigError(f"the log of {n_ticks} ticks needs about {need / 2**30:.3g} GiB, over half the "
@@ -216,7 +217,7 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
 def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, progress: bool,
           poses=None) -> str | None:
     dt = sim.control_dt_s
-    p_prev, q_prev, _ = sim.true_rates_dps().tolist()
+    p_prev, q_prev, _ = sim.true_rates_dps()
     on_tick = setup.on_tick
     it = tqdm(range(n_ticks), desc="simulating", unit="tick", disable=not progress, leave=False)
     drive = setup.drive
@@ -232,8 +233,8 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
         meas = sim.measure()
         out = fs.step(t, meas)
         sim.set_rotor_commands(out["rotor_pct"])
-        out["phi_true"], out["theta_true"], _ = sim.true_attitude_deg().tolist()
-        p_true, q_true, _ = sim.true_rates_dps().tolist()
+        out["phi_true"], out["theta_true"], _ = sim.true_attitude_deg()
+        p_true, q_true, _ = sim.true_rates_dps()
         out["p_true"], out["q_true"] = p_true, q_true
         out["p_dot"], out["q_dot"] = (p_true - p_prev) / dt, (q_true - q_prev) / dt
         p_prev, q_prev = p_true, q_true

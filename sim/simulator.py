@@ -16,7 +16,7 @@ from rotorlab.errors import RotorlabError
 from rotorlab.scenes import PREFIX, Scene, build_scene
 from rotorlab.sim.control.mixer import Mixer
 from rotorlab.sim.disturbances.mean_wind import WindDisturbance
-from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG, euler_deg_from_quat
+from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG, euler_deg
 from rotorlab.sim.sensors import SENSORS, imu_suite
 
 CONTROL_DT_S = 0.02  # the published ANTEOS cycle; a vehicle's own rate is VehicleSpec.control_dt_s
@@ -51,7 +51,7 @@ def body_wind(xmat, wind_world) -> np.ndarray:
     wind_world : (3,) or (n, 3)
         Wind in the world (z up), m/s.
     """
-    if np.ndim(xmat) == 1:
+    if xmat.ndim == 1:
         return xmat.reshape(3, 3).T @ wind_world
     return np.einsum("nji,nj->ni", np.reshape(xmat, (-1, 3, 3)), wind_world)
 
@@ -113,14 +113,28 @@ class StopCheck:
         return None
 
 
+def strided(ids):
+    """Actuator ids as the equal-stride slice they are when they are one (a rotor's actuators repeat with the
+    rotor: thrust at 0, 6, 12, 18), else unchanged: a slice of MjData's ``ctrl`` is a view, several times cheaper
+    per tick than the copy and scatter of an index array."""
+    ids = np.asarray(ids, dtype=int)
+    if ids.size < 2:
+        return slice(int(ids[0]), int(ids[0]) + 1) if ids.size else ids
+    step = int(ids[1] - ids[0])
+    if step > 0 and np.array_equal(ids, np.arange(ids[0], ids[-1] + 1, step)):
+        return slice(int(ids[0]), int(ids[-1]) + 1, step)
+    return ids
+
+
 def set_rotor_ctrl(ctrl, rotor_pct, vehicle, thrust, spinup) -> None:
-    """Rotor commands (%) into MuJoCo's controls of the thrust actuators and their spin-up twins (same control):
-    one simulation (``ctrl (nu,)``, ``rotor_pct (n_rotors,)``) or a row per simulation (``(n, nu)``,
-    ``(n, n_rotors)``, the batched runner)."""
-    c = vehicle.command_to_ctrl(np.asarray(rotor_pct, dtype=float)[..., : len(thrust)]).T
+    """Rotor commands (%, one per thrust actuator) into MuJoCo's controls of the thrust actuators and their
+    spin-up twins (same control; None: none): one simulation (``ctrl (nu,)``, ``rotor_pct (n_rotors,)``) or a row
+    per simulation (``(n, nu)``, ``(n, n_rotors)``, the batched runner). ``thrust``, ``spinup``: ids or
+    :func:`strided` slices."""
+    c = vehicle.command_to_ctrl(rotor_pct).T
     # indexed through the transposes (actuator index first): ctrl[..., ids] costs 10x more than ctrl[ids] per tick
     ctrl.T[thrust] = c
-    if spinup.size:
+    if spinup is not None:
         ctrl.T[spinup] = c
 
 
@@ -190,9 +204,13 @@ class Simulator:
         self.sensor_noise = sensor_noise
         self.seed = seed
         m = self.model
-        self._thrust = self.scene.thrust_actuators
-        self._spinup = self.scene.spinup_actuators  # same ctrl as the thrust actuators (rotor-inertia reaction)
-        self._aero = self.scene.aero_actuators
+        self._n_thrust = len(self.scene.thrust_actuators)
+        #: where the rotor commands and the wind go in ``ctrl`` (:func:`set_rotor_ctrl`, :func:`set_wind`): the
+        #: thrust actuators, their spin-up twins (same ctrl, the rotor-inertia reaction; None: none) and the
+        #: rotor aero actuators, as :func:`strided` slices where they are
+        self.thrust_ids = strided(self.scene.thrust_actuators)
+        self.spinup_ids = strided(self.scene.spinup_actuators) if len(self.scene.spinup_actuators) else None
+        self.aero_ids = {k: strided(v) for k, v in self.scene.aero_actuators.items()}
         self.mixer = vehicle_mixer(self.vehicle)
         self._limit = self.vehicle.command_limit_pct
         self._airframe = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{PREFIX}airframe")
@@ -207,17 +225,18 @@ class Simulator:
         self.imu = imu_suite(m, self.vehicle)
         self._bearing = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
         self._mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
-        self._stops = StopCheck(m, self.scene)
+        #: why a run must stop (also asked by the batched runner for each of its simulations)
+        self.stops = StopCheck(m, self.scene)
         self._free = self.scene.name == "free-flight"
         # views into MjData's buffers, made once: attribute access through the bindings costs microseconds
         d = self.data
         self._sd_v = d.sensordata
-        self._qpos_v, self._qvel_v, self._ctrl_v = d.qpos, d.qvel, d.ctrl
+        self._qpos_v, self._qvel_v, self._ctrl_v, self._xfrc_v = d.qpos, d.qvel, d.ctrl, d.xfrc_applied
         af = max(self._airframe, 0)
         self._af_xquat, self._af_xmat, self._af_xpos = d.xquat[af], d.xmat[af], d.xpos[af]
         self._wind_v = self.model.opt.wind
         self._warnings = [(w, d.warning[w]) for w in DIVERGENCE_WARNINGS]
-        self._gyro_scale = FLU_TO_FRD * RAD2DEG
+        self._gyro_scale = (FLU_TO_FRD * RAD2DEG).tolist()
         self.wind_world = np.zeros(3)
         self.reset(seed)
 
@@ -240,7 +259,7 @@ class Simulator:
             bias = self.imu.draw_bias(self.rng) if self.sensor_noise else np.zeros(self.imu.n_noisy)
             self._noise = self.imu.noise(self.rng, bias)
         self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
-        self.rotor_pct = np.asarray(self.mixer.mix(*self.commands_pct))[: len(self._thrust)]
+        self.rotor_pct = np.asarray(self.mixer.mix(*self.commands_pct))[: self._n_thrust]
         self.wind_world[:] = 0.0
         self._wind_v[:] = 0.0  # opt.wind lives in the model, which outlives a run
         for dist in self.disturbances:
@@ -263,9 +282,9 @@ class Simulator:
 
     def set_rotor_commands(self, rotor_pct) -> None:
         """Per-rotor commands in %, e.g. from the flight software's mixer or a thrust-stand test."""
-        rotor = np.asarray(rotor_pct, dtype=float)[: len(self._thrust)]
+        rotor = np.array(rotor_pct[: self._n_thrust], dtype=float)
         self.rotor_pct = rotor
-        set_rotor_ctrl(self._ctrl_v, rotor, self.vehicle, self._thrust, self._spinup)
+        set_rotor_ctrl(self._ctrl_v, rotor, self.vehicle, self.thrust_ids, self.spinup_ids)
 
     def add_axis_input(self, commands_pct) -> None:
         """Add axis commands ``[collective, roll, pitch, yaw]`` (%) to this tick's rotor commands at the
@@ -274,22 +293,22 @@ class Simulator:
         The motors' own range (the mixer's per-rotor limits) clips the sum. Cleared by the next
         :meth:`set_rotor_commands`."""
         mx = self.mixer
-        extra = np.asarray(mx.mix(*commands_pct, clip=False))[: len(self._thrust)]
+        extra = np.asarray(mx.mix(*commands_pct, clip=False))[: self._n_thrust]
         self.rotor_pct = np.clip(self.rotor_pct + extra, mx.out_min, mx.out_max)
-        set_rotor_ctrl(self._ctrl_v, self.rotor_pct, self.vehicle, self._thrust, self._spinup)
+        set_rotor_ctrl(self._ctrl_v, self.rotor_pct, self.vehicle, self.thrust_ids, self.spinup_ids)
 
     # ------------------------------------------------------------------ stepping
     def tick(self) -> None:
         """Advance one control period: disturbances update at the tick, then the batched physics steps."""
         d = self.data
         if self.disturbances:
-            d.xfrc_applied[:] = 0.0
+            self._xfrc_v[:] = 0.0
             self.wind_world[:] = 0.0
             t = self.time
             for dist in self.disturbances:
                 dist.update(self, t)
             set_wind(self._wind_v, self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.wind_world,
-                     self._aero)
+                     self.aero_ids)
         mujoco.mj_step(self.model, d, nstep=self.n_substeps)
         # mj_step leaves the sensors of the state before its last step; the IMU is sampled at the tick
         mujoco.mj_forward(self.model, d)
@@ -299,7 +318,7 @@ class Simulator:
         for w, stat in self._warnings:
             if stat.number > 0:
                 return diverged_reason(self.time, w.name)
-        return self._stops.reason(self._qpos_v, self._af_xmat, self._af_xpos, self.data.time)
+        return self.stops.reason(self._qpos_v, self._af_xmat, self._af_xpos, self.data.time)
 
     # ------------------------------------------------------------------ sensing
     def measure(self) -> dict:
@@ -316,16 +335,18 @@ class Simulator:
             out["x"], out["y"], out["z"], out["vx"], out["vy"], out["vz"] = x, -y, -z, vx, -vy, -vz
         return out
 
-    def true_attitude_deg(self) -> np.ndarray:
+    def true_attitude_deg(self) -> tuple[float, float, float]:
         """Airframe (not IMU) roll, pitch, yaw in degrees."""
-        return euler_deg_from_quat(self._af_xquat)
+        return euler_deg(*self._af_xquat.tolist())
 
-    def true_rates_dps(self) -> np.ndarray:
+    def true_rates_dps(self) -> tuple[float, float, float]:
+        """Airframe (not IMU) body rates p, q, r in deg/s (FRD)."""
         if self._free:  # the free joint's angular velocity is already in the airframe (FLU) frame
-            return self._qvel_v[3:6] * self._gyro_scale
+            return tuple([w * k for w, k in zip(self._qvel_v[3:6].tolist(), self._gyro_scale)])
         v = np.zeros(6)
         mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._airframe, v, 1)
-        return np.array([v[0], -v[1], -v[2]]) * RAD2DEG
+        p, q, r = v[:3].tolist()
+        return p * RAD2DEG, -q * RAD2DEG, -r * RAD2DEG
 
     def load_cell(self) -> tuple[float, float]:
         """Thrust-stand readings: thrust (N, up) and rotor drag torque (N m, counter-clockwise from above)

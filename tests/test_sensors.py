@@ -114,6 +114,34 @@ def test_load_cell_and_tachometer_read_the_rotor(vehicle):
     assert "load-cell" not in Simulator("pitch-rig", vehicle, sensor_noise=False).sensors
 
 
+@pytest.mark.parametrize("vehicle", ["tuhh-quad", "anteos-p2a2"])
+def test_every_sensor_reads_one_simulation_as_floats_bit_for_bit(vehicle):
+    """The simulator's per-tick path (Sensor.read_floats, SensorSuite.sample of one simulation) gives the very
+    floats of the vectorised read the batched runner uses: one conversion, two cost profiles."""
+    free = _moving_free_flight()
+    stand = Simulator("thrust-stand", vehicle, sensor_noise=False)
+    stand.set_rotor_commands([70.0])
+    for _ in range(5):
+        stand.tick()
+    seen = set()
+    for sim in (free, stand):
+        for name, sensor in sim.sensors.items():
+            x = getattr(sim.data, sensor.field)
+            got = sensor.read_floats(x.tolist())
+            assert all(type(v) is float for v in got), name
+            assert np.array_equal(np.array(got), sensor.read(x)), name
+            assert np.array_equal(np.array(got), sensor.read(x[None, :])[0]), name
+            seen.add(name)
+    assert seen == set(SENSORS)
+    noisy = Simulator("free-flight", vehicle, seed=3)
+    rows = np.repeat(noisy.data.sensordata[None, :], 2, axis=0)
+    gens = [np.random.default_rng(3) for _ in range(2)]  # as Simulator.reset seeds its own: bias, then ticks
+    batch_noise = noisy.imu.noise(gens, np.array([noisy.imu.draw_bias(g) for g in gens]))
+    one, many = noisy.imu.sample(noisy.data.sensordata, noisy._noise), noisy.imu.sample(rows, batch_noise)
+    assert all(type(v) is float for v in one.values())
+    assert all(one[c] == many[c][0] for c in one), "the scalar and the batched noisy sample differ"
+
+
 def test_noise_stream_is_bias_then_one_draw_per_tick_in_imu_order():
     seed = 17
     noisy = Simulator("pitch-rig", "anteos-p2a2", seed=seed, sensor_noise=True)

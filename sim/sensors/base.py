@@ -58,6 +58,13 @@ class Sensor:
         simulation)."""
         raise NotImplementedError
 
+    def read_floats(self, x: list) -> list:
+        """:meth:`read` of one simulation, from the MjData field as a list of floats to a list of floats, the
+        same values bit for bit (tests/test_sensors.py). The simulator samples through here every tick: a sensor
+        whose conversion is a few float operations overrides it with them, as numpy's per-call cost on a
+        3-vector is several times the arithmetic."""
+        return self.read(np.asarray(x)).tolist()
+
     def _require(self, model, name: str) -> slice:
         sl = sensor_slice(model, name)
         if sl is None:
@@ -91,6 +98,7 @@ class SensorSuite:
         self.n_noisy = sum(len(s.channels) for s, n in zip(self.sensors, noisy) if n)
         self._noisy_cols = np.concatenate([np.arange(sl.start, sl.stop) for sl, n in zip(self.slices, noisy) if n]) \
             if self.n_noisy else np.zeros(0, dtype=int)
+        self._noisy_list = self._noisy_cols.tolist()
         self.noise_std = np.concatenate([s.noise_std for s, n in zip(self.sensors, noisy) if n]) \
             if self.n_noisy else np.zeros(0)
 
@@ -119,10 +127,18 @@ class SensorSuite:
         """The readings at a control tick, channel -> value: floats from a 1-D ``x`` (one simulation), arrays
         ``(n,)`` from a 2-D one (a row per simulation); one tick of ``noise`` added when given. The simulator and
         the batched runner both sample through here."""
+        if x.ndim == 1:
+            # one simulation: floats throughout (Sensor.read_floats), the same sums as add_noise's
+            xs = x.tolist()
+            vals = [v for s in self.sensors for v in s.read_floats(xs)]
+            if noise is not None:
+                for i, n in zip(self._noisy_list, noise.next_floats()):
+                    vals[i] += n
+            return dict(zip(self.channels, vals))
         vals = self.read(x)
         if noise is not None:
             self.add_noise(vals, noise.next())
-        return dict(zip(self.channels, vals.tolist() if vals.ndim == 1 else vals.T))
+        return dict(zip(self.channels, vals.T))
 
     def noise(self, rngs, bias) -> NoiseStream:
         """The noise stream of one simulation (one Generator, ``bias (n_noisy,)``) or of several (a list of
@@ -152,16 +168,31 @@ class NoiseStream:
     def __init__(self, std: np.ndarray, rngs, bias: np.ndarray):
         self.std, self.rngs, self.bias = std, rngs, bias
         self._chunk = None
+        self._rows = None
         self._k = NOISE_CHUNK_TICKS
 
+    def _refill(self) -> None:
+        shape = (NOISE_CHUNK_TICKS, self.std.size)
+        if isinstance(self.rngs, np.random.Generator):
+            z = self.rngs.standard_normal(shape)
+        else:  # one stream per simulation: (ticks, n, n_noisy)
+            z = np.stack([g.standard_normal(shape) for g in self.rngs], axis=1)
+        self._chunk = self.bias + self.std * z
+        self._rows = None
+        self._k = 0
+
     def next(self) -> np.ndarray:
+        """The next tick's noise, ``(n_noisy,)`` or ``(n, n_noisy)``."""
         if self._k == NOISE_CHUNK_TICKS:
-            shape = (NOISE_CHUNK_TICKS, self.std.size)
-            if isinstance(self.rngs, np.random.Generator):
-                z = self.rngs.standard_normal(shape)
-            else:  # one stream per simulation: (ticks, n, n_noisy)
-                z = np.stack([g.standard_normal(shape) for g in self.rngs], axis=1)
-            self._chunk = self.bias + self.std * z
-            self._k = 0
+            self._refill()
         self._k += 1
         return self._chunk[self._k - 1]
+
+    def next_floats(self) -> list:
+        """:meth:`next` of one simulation as a list of floats (the chunk is converted once, not every tick)."""
+        if self._k == NOISE_CHUNK_TICKS:
+            self._refill()
+        if self._rows is None:
+            self._rows = self._chunk.tolist()
+        self._k += 1
+        return self._rows[self._k - 1]

@@ -9,6 +9,8 @@ import numpy as np
 from rotorlab.sim.frames import FLU_TO_FRD
 from rotorlab.sim.sensors.base import Sensor
 
+_FLU_TO_FRD_FLOATS = FLU_TO_FRD.tolist()
+
 
 class ImuAccelerometer(Sensor):
     name = "imu-accelerometer"
@@ -21,6 +23,9 @@ class ImuAccelerometer(Sensor):
 
     def read(self, x) -> np.ndarray:
         return x[..., self.slice] * FLU_TO_FRD
+
+    def read_floats(self, x: list) -> list:
+        return [v * k for v, k in zip(x[self.slice], _FLU_TO_FRD_FLOATS)]
 
 
 __all__ = ["ImuAccelerometer"]

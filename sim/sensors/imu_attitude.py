@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rotorlab.sim.frames import euler_deg_from_quat, euler_deg_from_quats
+from rotorlab.sim.frames import euler_deg, euler_deg_from_quat, euler_deg_from_quats
 from rotorlab.sim.sensors.base import Sensor
 
 
@@ -22,6 +22,9 @@ class ImuAttitude(Sensor):
         q = x[..., self.slice]
         # one simulation: scalar math on four floats is several times cheaper than numpy on a 4-vector
         return euler_deg_from_quat(q) if q.ndim == 1 else euler_deg_from_quats(q)
+
+    def read_floats(self, x: list) -> list:
+        return list(euler_deg(*x[self.slice]))
 
 
 __all__ = ["ImuAttitude"]

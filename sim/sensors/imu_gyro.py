@@ -10,6 +10,7 @@ from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG
 from rotorlab.sim.sensors.base import Sensor
 
 _SCALE = FLU_TO_FRD * RAD2DEG
+_SCALE_FLOATS = _SCALE.tolist()
 
 
 class ImuGyro(Sensor):
@@ -24,6 +25,9 @@ class ImuGyro(Sensor):
 
     def read(self, x) -> np.ndarray:
         return x[..., self.slice] * _SCALE
+
+    def read_floats(self, x: list) -> list:
+        return [v * k for v, k in zip(x[self.slice], _SCALE_FLOATS)]
 
 
 __all__ = ["ImuGyro"]
