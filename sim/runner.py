@@ -77,7 +77,7 @@ def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: fl
     fs = FlightSoftware(
         gains, vehicle_mixer(vehicle), dt=dt, mode=setup.mode, limits=setup.limits(vehicle), position_gains=pos,
         open_loop_axes=setup.open_loop_axes, schedule=setup.schedule or None, reference=setup.reference,
-        excitation=setup.excitation or None, n=n,
+        excitation=setup.excitation or None, altitude_hold=setup.altitude_hold, n=n,
     )
     if controller is not None:
         fs.plugins.extend(controller_plugins(controller, fs))

@@ -5,7 +5,7 @@ Modes
 -----
 ``'cascade'``
     Attitude cascade on roll and pitch to ``phi_ref``/``theta_ref``, heading hold on ``psi_ref``, and
-    altitude hold on ``z_ref`` when one is set (otherwise the collective is ``u_col``).
+    altitude hold on ``z_ref`` when one is set or ``altitude_hold`` is on (otherwise the collective is ``u_col``).
 ``'open-loop'``
     Quasi-open-loop identification: on the axes in ``open_loop_axes`` the command is the external command
     (``u_lat``/``u_lon``/``u_yaw`` set by :meth:`FlightSoftware.set_reference`) plus excitation plus, on roll
@@ -91,6 +91,9 @@ class FlightSoftware:
         Set-points/external commands by name, evaluated each tick over those of :meth:`set_reference`.
     excitation : dict name -> array or callable, optional
     plugins : sequence of Plugin
+    altitude_hold : bool
+        Hold the altitude in every mode (``z_ref``, latched to the measurement at the first tick when not set),
+        as a pilot's altitude hold under an identification experiment; position mode always holds it.
     n : int, optional
         Fly ``n`` simulations at once (module docstring, "Many simulations"); ``gains`` may then be a sequence of
         n GainSets. None: one simulation, signals are floats.
@@ -99,7 +102,8 @@ class FlightSoftware:
     def __init__(self, gains: GainSet, mixer: Mixer, dt: float = 0.02, mode: str = "cascade", *, limits,
                  position_gains: PositionGains | None = None,
                  supervisor: Supervisor | None = None, open_loop_axes=AXES, antiwindup: str | None = "clamp",
-                 schedule=None, reference=None, excitation=None, plugins=(), n: int | None = None):
+                 schedule=None, reference=None, excitation=None, plugins=(), altitude_hold: bool = False,
+                 n: int | None = None):
         if not isinstance(mixer, Mixer):
             raise ConfigError(field="mixer", expected="a rotorlab.sim.control.mixer.Mixer", got=type(mixer).__name__)
         self.dt = float(dt)
@@ -116,6 +120,7 @@ class FlightSoftware:
             self._mix = mixer.mix
         else:
             unsupported = [name for name, asked in (("mode 'position'", mode == "position"), ("schedule", schedule),
+                                                    ("altitude_hold", altitude_hold),
                                                     ("excitation", excitation), ("plugins", plugins),
                                                     (f"antiwindup '{antiwindup}'", antiwindup != "clamp")) if asked]
             if unsupported:
@@ -135,6 +140,7 @@ class FlightSoftware:
         if reference is not None and not callable(reference):
             raise ConfigError(field="reference", expected="a callable t -> dict", got=type(reference).__name__)
         self.reference = reference
+        self.altitude_hold = bool(altitude_hold)
         self.excitation = {}
         for name, sig in (excitation or {}).items():
             if name not in SETPOINTS + COMMANDS:
@@ -250,7 +256,7 @@ class FlightSoftware:
         psi_ref = refs.get("psi_ref")
         if psi_ref is None or exc:
             psi_ref = self._setpoint("psi_ref", refs, psi, t)
-        if mode == "position" or "z_ref" in refs:
+        if mode == "position" or self.altitude_hold or "z_ref" in refs:
             if self.n is not None:
                 raise ConfigError("a position or altitude set-point needs the flight software of one simulation",
                                   field="reference", expected="attitude set-points and commands", got=sorted(refs))

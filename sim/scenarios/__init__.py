@@ -51,7 +51,8 @@ class Context:
 class Setup:
     """What the runner needs to run a scenario.
 
-    ``mode``/``reference``/``excitation``/``schedule`` configure the flight software; ``disturbances`` are
+    ``mode``/``reference``/``excitation``/``schedule``/``altitude_hold`` configure the flight software
+    (:class:`~rotorlab.sim.control.flight_software.FlightSoftware`); ``disturbances`` are
     composed into the physics; ``sensor_noise`` switches the IMU noise; ``u_limit_pct`` and
     ``rate_limit_dps`` override the vehicle's roll/pitch saturations (its ``[commands]``) where a test used other
     values (None: the vehicle's; :meth:`limits`); ``extra_columns`` name scenario-specific log columns
@@ -61,6 +62,7 @@ class Setup:
 
     mode: str = "cascade"
     reference: Callable | None = None
+    altitude_hold: bool = False
     excitation: dict = dataclasses.field(default_factory=dict)
     schedule: list = dataclasses.field(default_factory=list)
     disturbances: list = dataclasses.field(default_factory=list)

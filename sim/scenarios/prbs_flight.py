@@ -60,8 +60,8 @@ def setup(ctx: Context) -> Setup:
     if o["protocol"] == "position-hold":
         return Setup(mode="position", excitation={"u_lon": u}, disturbances=dist, extra_columns={"u_exc": "%"},
                      on_tick=_exc_logger(u), notes=notes)
-    # the pilot's altitude hold: a z set-point latched at the first tick engages the altitude loop
-    return Setup(mode="open-loop", open_loop_axes=("pitch",), reference=lambda t: {"z_ref": None},
+    # the pilot's altitude hold: the altitude loop holds the height latched at the first tick
+    return Setup(mode="open-loop", open_loop_axes=("pitch",), altitude_hold=True,
                  excitation={"u_lon": u}, disturbances=dist, extra_columns=extra, on_tick=_exc_logger(u), notes=notes)
 
 
