@@ -32,9 +32,8 @@ DURATION_S = 31.0
 DEFAULTS = {"steps_deg": [2.0, -2.0, 5.0, -5.0, 10.0, -10.0], "small_step_deg": 0.3, "hold_s": 2.5, "t0_s": 1.0}
 
 
-def schedule(options: dict) -> list[tuple[float, float]]:
-    """(time s, level deg) of every set-point change."""
-    o = {**DEFAULTS, **options}
+def schedule(o: dict) -> list[tuple[float, float]]:
+    """(time s, level deg) of every set-point change, from the options merged over :data:`DEFAULTS`."""
     hold, t = float(o["hold_s"]), float(o["t0_s"])
     if not hold > 0:
         raise ConfigError(field="options.hold_s", expected="a hold time > 0 s", got=hold)
@@ -47,13 +46,13 @@ def schedule(options: dict) -> list[tuple[float, float]]:
 
 
 def setup(ctx: Context) -> Setup:
-    merged_options(ctx, DEFAULTS)
-    changes = schedule(ctx.options)
+    o = merged_options(ctx, DEFAULTS)
+    changes = schedule(o)
     times = np.array([c[0] for c in changes])
     levels = np.array([c[1] for c in changes])
     axis, angle, _, _ = _metrics.channels(ctx.scene)
     ref_name = f"{angle}_ref"
-    small = bool({**DEFAULTS, **ctx.options}["small_step_deg"])
+    small = bool(o["small_step_deg"])
     # noise off over the small step and its return, until the next step starts
     quiet_until = float(times[2]) if small and len(times) > 2 else (np.inf if small else 0.0)
 
