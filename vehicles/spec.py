@@ -302,7 +302,7 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         flap_arm_m=r.num("flap_arm_m", lo=0.0),
         lag_s=_per_rotor(r, "lag_s", lo_open=True, hi=MAX_LAG_DELAY_S),
         delay_s=_per_rotor(r, "delay_s", lo_open=False, hi=MAX_LAG_DELAY_S),
-        blades=int(r.num("blades", 2, lo=2)),
+        blades=r.num("blades", 2, lo=2),
         solidity=r.num("solidity", 0.0, lo=0.0, hi=1.0),
         lift_slope_per_rad=r.num("lift_slope_per_rad", 0.0, lo=0.0),
         profile_drag_coefficient=r.num("profile_drag_coefficient", 0.0, lo=0.0),
@@ -311,8 +311,9 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         hub_spring_damping_Nms_per_rad=r.num("hub_spring_damping_Nms_per_rad", 0.0, lo=0.0),
         hub_damping_Nms_per_rad=r.num("hub_damping_Nms_per_rad", 0.0, lo=0.0),
     )
-    if common["blades"] != r.num("blades", 2):
+    if common["blades"] != int(common["blades"]):
         raise ConfigError(file=src, field="rotor.blades", expected="a whole number of blades >= 2", got=r.data["blades"])
+    common["blades"] = int(common["blades"])
     if common["hub_stiffness_Nm_per_rad"] > 0:
         for key in ("solidity", "lift_slope_per_rad", "lock_number"):
             if not common[key] > 0:
