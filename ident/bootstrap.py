@@ -9,14 +9,13 @@ models (000_*.txt, "Bootstrap scheme for SMI", 1000 replications).
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import control as ct
 import numpy as np
 
 from rotorlab.errors import DataError
-from rotorlab.executor import LocalExecutor
+from rotorlab.executor import Executor, map_tasks
 
 from ._data import check_io
 from .freqresp import model_frf
@@ -116,7 +115,8 @@ def _unpack(d: dict) -> IdentifiedModel:
 
 
 def bootstrap(u, y, identify, n_boot: int = 1000, seed: int | None = 0, n_jobs: int = 1,
-              chunk: int | None = None, progress: bool = True, mapper: Callable | None = None) -> BootstrapResult:
+              chunk: int | None = None, progress: bool = True, executor: Executor | None = None,
+              desc: str = "bootstrap") -> BootstrapResult:
     """Parametric bootstrap of an identification method.
 
     Parameters
@@ -134,15 +134,15 @@ def bootstrap(u, y, identify, n_boot: int = 1000, seed: int | None = 0, n_jobs: 
         Root seed; replication i uses ``SeedSequence(seed).spawn(n_boot)[i]``, so results do not depend on
         ``n_jobs`` or ``chunk``.
     n_jobs : int
-        Worker processes (1: in this process) when no ``mapper`` is given; with one, the number of workers
-        it has (it sizes the chunks).
+        Worker processes of a local pool (1: in this process) when no ``executor`` is given; with one, its
+        workers size the chunks.
     chunk : int, optional
         Replications per task (default: about four tasks per worker).
     progress : bool
-        tqdm progress bar over completed chunks (without ``mapper``).
-    mapper : callable ``(fn, tasks) -> list``, optional
-        Ordered map that runs the chunks, e.g. :meth:`rotorlab.executor.Executor.map` of a Dask executor;
-        default: a local process pool of ``n_jobs`` workers. The results do not depend on it.
+        tqdm progress bar over completed chunks, labelled ``desc``.
+    executor : :class:`rotorlab.executor.Executor`, optional
+        Runs the chunks (e.g. a run's Dask executor: :func:`rotorlab.executor.map_tasks`); default: a local
+        process pool of ``n_jobs`` workers. The results do not depend on it.
 
     Returns
     -------
@@ -165,14 +165,10 @@ def bootstrap(u, y, identify, n_boot: int = 1000, seed: int | None = 0, n_jobs: 
     A, C = np.asarray(nominal.sys.A, float), np.asarray(nominal.sys.C, float)
     ABCK = (A, C, nominal.K if nominal.K is not None else np.zeros((A.shape[0], p)))
     seeds = np.random.SeedSequence(seed).spawn(n_boot)
-    n_jobs = max(1, int(n_jobs))
+    n_jobs = executor.workers if executor is not None else max(1, int(n_jobs))
     chunk = chunk or max(1, int(np.ceil(n_boot / (4 * n_jobs))))
     chunks = [seeds[i:i + chunk] for i in range(0, n_boot, chunk)]
     tasks = [(identify, ABCK, u_in, y_det, chol, c) for c in chunks]
-    if mapper is None:
-        with LocalExecutor(n_jobs) as ex:
-            results = ex.map(_replicate_task, tasks, desc="bootstrap", progress=progress)
-    else:
-        results = mapper(_replicate_task, tasks)
+    results = map_tasks(_replicate_task, tasks, executor=executor, n_jobs=n_jobs, desc=desc, progress=progress)
     models = [_unpack(d) for r in results for d in r]
     return BootstrapResult(nominal=nominal, models=models, seed=seed)

@@ -32,7 +32,7 @@ from rotorlab.errors import RotorlabError
 # dask.distributed is imported where a Dask executor is made: an optional dependency (rotorlab[dask]).
 
 __all__ = ["Executor", "ExecutorError", "SerialExecutor", "LocalExecutor", "DaskExecutor", "get_executor",
-           "task_seeds", "EXECUTOR_SPECS"]
+           "map_tasks", "task_seeds", "EXECUTOR_SPECS"]
 
 EXECUTOR_SPECS = ("serial", "local", "dask", "dask://HOST:PORT")
 
@@ -130,6 +130,17 @@ class LocalExecutor(Executor):
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
+
+
+def map_tasks(fn: Callable, tasks: Sequence, *, executor: Executor | None = None, n_jobs: int = 1,
+              desc: str | None = None, progress: bool = False) -> list:
+    """The one way the libraries (bootstrap, Monte Carlo, tuning starts) run their tasks: through the
+    caller's ``executor`` (a run's local pool or Dask cluster) when given, else on a local pool of ``n_jobs``
+    processes made for this call (in this process when ``n_jobs <= 1``). Results in task order."""
+    if executor is not None:
+        return list(executor.map(fn, tasks, desc=desc, progress=progress))
+    with LocalExecutor(max(1, int(n_jobs))) as ex:
+        return ex.map(fn, tasks, desc=desc, progress=progress)
 
 
 class DaskExecutor(Executor):

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rotorlab.excitation import prbs
-from rotorlab.executor import get_executor
+from rotorlab.executor import Executor, get_executor
 from rotorlab.gains import load_gains
 from rotorlab.ident import IdentifiedModel, bootstrap, pbsid
 from rotorlab.lti import c2d_zoh
@@ -44,19 +44,17 @@ def _traced(fn, task):
     return os.getpid(), where, fn(task)
 
 
-class _Where:
-    """A ``mapper`` for the libraries over the Dask executor that records the process and worker of every task."""
+class _Where(Executor):
+    """The Dask executor, recording the process and worker of every task the libraries hand it."""
 
     def __init__(self, ex):
-        self.ex, self.pids, self.workers = ex, set(), set()
+        self.ex, self.pids, self.where = ex, set(), set()
+        self.workers = ex.workers
 
-    def __call__(self, fn, tasks):
-        return self.map(fn, tasks)
-
-    def map(self, fn, tasks, *, desc=None, progress=False):  # the Executor interface (tuning starts take one)
+    def map(self, fn, tasks, *, desc=None, progress=False):
         out = self.ex.map(functools.partial(_traced, fn), tasks)
         self.pids |= {p for p, _, _ in out}
-        self.workers |= {w for _, w, _ in out}
+        self.where |= {w for _, w, _ in out}
         return [r for _, _, r in out]
 
 
@@ -69,9 +67,9 @@ def test_tasks_run_on_the_cluster_workers(cluster):
     ex, lc = cluster
     assert ex.workers == 2
     where = _Where(ex)
-    assert where(_slow_square, list(range(8))) == [i * i for i in range(8)]
+    assert where.map(_slow_square, list(range(8))) == [i * i for i in range(8)]
     assert os.getpid() not in where.pids and len(where.pids) == 2
-    assert where.workers == set(lc.scheduler_info["workers"])
+    assert where.where == set(lc.scheduler_info["workers"])
 
 
 def test_bootstrap_on_dask_matches_this_process(cluster):
@@ -81,8 +79,8 @@ def test_bootstrap_on_dask_matches_this_process(cluster):
     ident = functools.partial(pbsid, order=2, past=20, future=10, delay=3, dt=DT)
     where = _Where(cluster[0])
     a = bootstrap(u, y, ident, n_boot=6, seed=3, n_jobs=1, progress=False)
-    b = bootstrap(u, y, ident, n_boot=6, seed=3, n_jobs=2, chunk=2, mapper=where)
-    assert os.getpid() not in where.pids and where.workers <= set(cluster[1].scheduler_info["workers"])
+    b = bootstrap(u, y, ident, n_boot=6, seed=3, chunk=2, executor=where)
+    assert os.getpid() not in where.pids and where.where <= set(cluster[1].scheduler_info["workers"])
     for ma, mb in zip(a.models, b.models, strict=True):
         np.testing.assert_array_equal(np.asarray(ma.sys.A), np.asarray(mb.sys.A))
     assert not np.array_equal(np.asarray(a.models[0].sys.A), np.asarray(a.models[1].sys.A))
@@ -94,7 +92,7 @@ def test_montecarlo_on_dask_matches_this_process(cluster):
     builder = functools.partial(single_loop, C=C)
     where = _Where(cluster[0])
     a = montecarlo(G, W, builder, 1.0, n=12, seed=11, progress=False, t_final_s=1.0)
-    b = montecarlo(G, W, builder, 1.0, n=12, seed=11, n_jobs=2, mapper=where, t_final_s=1.0)
+    b = montecarlo(G, W, builder, 1.0, n=12, seed=11, executor=where, t_final_s=1.0)
     assert os.getpid() not in where.pids
     np.testing.assert_array_equal(a.setpoint, b.setpoint)
     np.testing.assert_array_equal(a.abscissa, b.abscissa)

@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Callable
 
 import control as ct
 import numpy as np
@@ -23,7 +22,7 @@ import scipy.signal
 
 from rotorlab import lti
 from rotorlab.errors import DataError
-from rotorlab.executor import LocalExecutor
+from rotorlab.executor import Executor, map_tasks
 from rotorlab.stepresponse import step_metrics
 
 __all__ = ["MonteCarloResult", "montecarlo", "random_delta", "single_loop", "worst_case_delta",
@@ -250,7 +249,7 @@ def _chunk(task):
 
 def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, seed=None, n_jobs: int = 1,
                t_final_s: float = 3.0, n_steps: int = 600, w_band=(0.1, 100.0), static_fraction: float = 0.2,
-               progress: bool = True, marginal_tol: float = MARGINAL_TOL, mapper: Callable | None = None
+               progress: bool = True, marginal_tol: float = MARGINAL_TOL, executor: Executor | None = None
                ) -> MonteCarloResult:
     """Monte Carlo of ``n`` uncertain plants ``G_nom + W_delta Delta``, ``||Delta||_inf = h``.
 
@@ -263,14 +262,14 @@ def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, see
         function on every sample is slow). Picklable when the samples run in other processes.
     h : peak gain of Delta (e.g. :func:`rotorlab.tune.robust.h_lim`).
     n : number of samples. seed : int or ``numpy.random.SeedSequence`` (one child per sample).
-    n_jobs : worker processes of a local pool when no ``mapper`` is given (with one: the number of workers
-        it has, which sizes the tasks); ``-1`` = all cores. Results do not depend on it.
+    n_jobs : worker processes of a local pool when no ``executor`` is given (with one: its workers size the
+        tasks); ``-1`` = all cores. Results do not depend on it.
     t_final_s, n_steps : simulation horizon; discrete plants use their own sample time (n_steps ignored).
     w_band, static_fraction : passed to :func:`random_delta`.
     progress : show a tqdm bar.
     marginal_tol : a closed-loop spectral abscissa within this of zero marks the sample marginal.
-    mapper : callable ``(fn, tasks) -> list``, optional: ordered map that runs the tasks, e.g.
-        :meth:`rotorlab.executor.Executor.map` of a Dask executor. The results do not depend on it.
+    executor : :class:`rotorlab.executor.Executor`, optional: runs the tasks (e.g. a run's Dask executor:
+        :func:`rotorlab.executor.map_tasks`); default: a local pool of ``n_jobs``. Results do not depend on it.
     """
     if n < 1 or int(n) != n:
         raise DataError(f"n must be a positive whole number of samples; got {n}")
@@ -289,14 +288,14 @@ def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, see
     ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
     children = ss.spawn(int(n))
 
-    n_jobs = os.cpu_count() if n_jobs in (-1, None) else max(int(n_jobs), 1)
+    if executor is not None:
+        n_jobs = executor.workers
+    elif n_jobs in (-1, None):
+        n_jobs = os.cpu_count()
+    n_jobs = max(int(n_jobs), 1)
     size = max(1, min(50, int(n) // (4 * n_jobs) or 1))
     tasks = [(G_nom, W, closed_loop_builder, h, t, opts, children[i:i + size]) for i in range(0, int(n), size)]
-    if mapper is None:
-        with LocalExecutor(n_jobs) as ex:
-            parts = ex.map(_chunk, tasks, desc="montecarlo", progress=progress)
-    else:
-        parts = mapper(_chunk, tasks)
+    parts = map_tasks(_chunk, tasks, executor=executor, n_jobs=n_jobs, desc="montecarlo", progress=progress)
     results = [r for part in parts for r in part]  # in task order, so the sample order is fixed
 
     nom = _simulate(lti.as_ss(closed_loop_builder(G_nom)), t)

@@ -15,7 +15,6 @@ their own, so the layout is written down once (here).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -212,13 +211,6 @@ class StageContext:
 
     def progress(self, it, desc: str, total=None):
         return tqdm(it, desc=f"  {desc}", total=total, disable=not self.opts.progress, leave=False)
-
-    def mapper(self, desc: str, progress: bool | None = None) -> Callable:
-        """The run's executor as the ordered ``(fn, tasks) -> list`` the libraries take (``mapper=``), so
-        every parallel step (bootstrap replications, Monte Carlo samples, tuning starts) runs where the
-        campaign runs: local processes or the Dask cluster."""
-        return functools.partial(self.executor.map, desc=desc,
-                                 progress=self.opts.progress if progress is None else progress)
 
 
 @dataclasses.dataclass(frozen=True)

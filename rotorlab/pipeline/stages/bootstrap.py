@@ -81,7 +81,7 @@ def _bootstrap_wdelta(ctx: StageContext, log, settings: dict, seed: int, w, whic
     :meth:`RunFolder.w_delta_path` reads it. Returns the bootstrap, ``W_delta``, ``|W_delta|`` and the
     replicas' additive spread on ``w``."""
     br = bootstrap(log["u_lon"], log["q"], _identify(settings), n_boot=ctx.settings["n_boot"], seed=seed,
-                   n_jobs=ctx.executor.workers, mapper=ctx.mapper(desc))
+                   executor=ctx.executor, desc=desc, progress=ctx.opts.progress)
     replicas = [m.sys for m in br.models]
     W = fit_wdelta(br.nominal.sys, replicas, w, order=W_DELTA_ORDER)
     save_model(ctx.work / ctx.run.w_delta_path(which).name, W, input=["delta"], output=["q"])

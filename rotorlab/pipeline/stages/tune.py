@@ -93,7 +93,7 @@ def run(ctx: StageContext) -> dict:
             # level 1 keeps the seed it always had; every other level draws its own Deltas
             seed = np.random.SeedSequence([ctx.seed, k] if j == 0 else [ctx.seed, k, j])
             mc = montecarlo(G_mc.sys, W, builder, scale * hl.h_lim, n=ctx.settings["n_mc"], seed=seed,
-                            n_jobs=ctx.executor.workers, mapper=ctx.mapper("montecarlo", progress=False),
+                            executor=ctx.executor, progress=False,
                             t_final_s=STEP_T_FINAL_S)
             levels[f"{scale:g}"] = _mc_entry(mc, scale, hl.h_lim)
             if j == 0:
