@@ -106,10 +106,6 @@ class PositionGains:
         return dataclasses.asdict(self)
 
 
-def _sat(v: float, lim: float) -> float:
-    return lim if v > lim else (-lim if v < -lim else v)
-
-
 class PositionHold:
     """Horizontal position hold -> roll/pitch set-points (deg).
 
@@ -131,16 +127,23 @@ class PositionHold:
 
     def step(self, x_ref: float, y_ref: float, x: float, y: float, vx: float, vy: float,
              psi_deg: float) -> tuple[float, float]:
+        # saturations written out as comparisons: a helper call each costs more than the arithmetic, every tick
         g = self.gains
-        vx_ref = _sat(g.pos_kp * (x_ref - x), g.max_vel_mps)
-        vy_ref = _sat(g.pos_kp * (y_ref - y), g.max_vel_mps)
+        kp, vmax, tilt_max = g.pos_kp, g.max_vel_mps, g.max_tilt_deg
+        v = kp * (x_ref - x)
+        vx_ref = vmax if v > vmax else (-vmax if v < -vmax else v)
+        v = kp * (y_ref - y)
+        vy_ref = vmax if v > vmax else (-vmax if v < -vmax else v)
         ax = self.vx.step(vx_ref, vx)
         ay = self.vy.step(vy_ref, vy)
-        c, s = math.cos(math.radians(psi_deg)), math.sin(math.radians(psi_deg))
+        psi = math.radians(psi_deg)
+        c, s = math.cos(psi), math.sin(psi)
         a_fwd = c * ax + s * ay
         a_right = -s * ax + c * ay
-        theta_ref = _sat(-math.degrees(math.atan2(a_fwd, G_MPS2)), g.max_tilt_deg)
-        phi_ref = _sat(math.degrees(math.atan2(a_right, G_MPS2)), g.max_tilt_deg)
+        v = -math.degrees(math.atan2(a_fwd, G_MPS2))
+        theta_ref = tilt_max if v > tilt_max else (-tilt_max if v < -tilt_max else v)
+        v = math.degrees(math.atan2(a_right, G_MPS2))
+        phi_ref = tilt_max if v > tilt_max else (-tilt_max if v < -tilt_max else v)
         return phi_ref, theta_ref
 
 
@@ -161,7 +164,8 @@ class AltitudeHold:
 
     def step(self, h_ref: float, h: float, vh: float, phi_deg: float, theta_deg: float) -> float:
         g = self.gains
-        vh_ref = _sat(g.alt_kp * (h_ref - h), g.max_climb_mps)
+        v, vmax = g.alt_kp * (h_ref - h), g.max_climb_mps
+        vh_ref = vmax if v > vmax else (-vmax if v < -vmax else v)
         a_up = self.vz.step(vh_ref, vh)
         # tilt compensation, limited to 60 deg of tilt so a tumbling vehicle does not get a huge collective
         tilt = math.cos(phi_deg * _DEG) * math.cos(theta_deg * _DEG)
