@@ -228,7 +228,7 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
             sim.sensor_noise = noise and noise_on(t)
         if drive is not None:  # bench tests: the scenario drives the actuators itself, no flight software
             log.append(t, drive(sim, t))
-            sim.tick()
+            sim.tick(controls_only=True)
             continue
         meas = sim.measure()
         out = fs.step(t, meas)
@@ -245,7 +245,7 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
         log.append(t, out)
         if poses is not None:
             poses.record(sim)
-        sim.tick()
+        sim.tick(controls_only=True)  # the loop writes nothing into MuJoCo between ticks but the rotor commands
         reason = sim.check()
         if reason:
             return reason

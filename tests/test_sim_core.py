@@ -10,6 +10,7 @@ from rotorlab.cli import main
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import build_scene
 from rotorlab.sim.runner import run_scenario
+from rotorlab.sim.simulator import Simulator
 from rotorlab.vehicles import load_vehicle, vehicle_path
 
 
@@ -95,6 +96,26 @@ def test_diverging_run_stops_and_keeps_log(tmp_path):
     assert info["stopped"] == r.stopped
     rows = pq.read_table(tmp_path / "run" / "log.parquet").num_rows
     assert 0 < rows < 1000
+
+
+@pytest.mark.parametrize("vehicle", ["anteos-p2a2", "tuhh-quad"])
+def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle):
+    """Simulator.tick(controls_only=True) (the runner's loop) reuses the tick's position and velocity stages for
+    the next physics step: the same state, sensors and actuator forces bit for bit under changing commands; a bad
+    state still stops the run."""
+    plain, fast = (Simulator("free-flight", vehicle, sensor_noise=False) for _ in range(2))
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        cmd = plain.vehicle.hover_collective_pct + rng.uniform(-3.0, 3.0, 4)
+        for sim, ctrl_only in ((plain, False), (fast, True)):
+            sim.set_commands(cmd)
+            sim.tick(controls_only=ctrl_only)
+        for field in ("qpos", "qvel", "act", "sensordata", "actuator_force", "xquat"):
+            assert np.array_equal(getattr(plain.data, field), getattr(fast.data, field)), field
+    assert fast.check() is None
+    fast.data.qvel[0] = np.nan
+    fast.tick(controls_only=True)
+    assert "mjWARN_BADQ" in fast.check()
 
 
 def test_cli_list_and_run(tmp_path, capsys):
