@@ -99,6 +99,8 @@ class SensorSuite:
         self._noisy_cols = np.concatenate([np.arange(sl.start, sl.stop) for sl, n in zip(self.slices, noisy) if n]) \
             if self.n_noisy else np.zeros(0, dtype=int)
         self._noisy_list = self._noisy_cols.tolist()
+        self._all_noisy = self.n_noisy == len(self.channels)
+        self._read_floats = [s.read_floats for s in self.sensors]
         self.noise_std = np.concatenate([s.noise_std for s, n in zip(self.sensors, noisy) if n]) \
             if self.n_noisy else np.zeros(0)
 
@@ -130,10 +132,15 @@ class SensorSuite:
         if x.ndim == 1:
             # one simulation: floats throughout (Sensor.read_floats), the same sums as add_noise's
             xs = x.tolist()
-            vals = [v for s in self.sensors for v in s.read_floats(xs)]
+            vals = []
+            for read in self._read_floats:
+                vals += read(xs)
             if noise is not None:
-                for i, n in zip(self._noisy_list, noise.next_floats()):
-                    vals[i] += n
+                if self._all_noisy:
+                    vals = [v + n for v, n in zip(vals, noise.next_floats())]
+                else:
+                    for i, n in zip(self._noisy_list, noise.next_floats()):
+                        vals[i] += n
             return dict(zip(self.channels, vals))
         vals = self.read(x)
         if noise is not None:
