@@ -181,6 +181,7 @@ class Simulator:
                  sensor_noise: bool = True, disturbances=()):
         self.disturbances = list(disturbances)
         self.wind_disturbances = [d for d in self.disturbances if isinstance(d, WindDisturbance)]
+        self._wind_only = len(self.wind_disturbances) == len(self.disturbances)
         if isinstance(scene, Scene):
             self.scene = scene
         else:
@@ -306,14 +307,16 @@ class Simulator:
         """Advance one control period: disturbances update at the tick, then the batched physics steps.
 
         ``controls_only``: the caller vouches that since the last tick or :meth:`reset` it changed nothing in
-        MuJoCo's model or data but ``ctrl`` (the runner's loop). Then, in a run without disturbances, the first
-        physics step reuses the position and velocity stages the last tick computed for this very state
-        (``mj_step2``; they do not depend on the controls), and MuJoCo's state checks run at the end of the tick
+        MuJoCo's model or data but ``ctrl`` (the runner's loop). Then the first physics step reuses the position
+        and velocity stages the last tick computed for this very state (``mj_step2``; they do not depend on the
+        controls; wind disturbances, which reach the velocity stage through ``opt.wind``, have it recomputed, and
+        other disturbances take the plain step), and MuJoCo's state checks run at the end of the tick
         (``mj_step1``) instead of at the start of the next: the same calls in another grouping, so the same
         floats, one forward pass fewer per tick. A state that went bad is then caught at the tick it went bad,
         before it is measured and logged.
         """
         m, d = self.model, self.data
+        regroup = controls_only
         if self.disturbances:
             self._xfrc_v[:] = 0.0
             self.wind_world[:] = 0.0
@@ -322,7 +325,11 @@ class Simulator:
                 dist.update(self, t)
             set_wind(self._wind_v, self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.wind_world,
                      self.aero_ids)
-        elif controls_only:
+            if regroup and self._wind_only:
+                mujoco.mj_fwdVelocity(m, d)  # the passive forces (fuselage drag) under the new wind
+            else:
+                regroup = False
+        if regroup:
             mujoco.mj_step2(m, d)
             if self.n_substeps > 1:
                 mujoco.mj_step(m, d, nstep=self.n_substeps - 1)

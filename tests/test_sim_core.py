@@ -10,6 +10,7 @@ from rotorlab.cli import main
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import build_scene
 from rotorlab.sim.runner import run_scenario
+from rotorlab.sim.disturbances import DrydenWind, MeanWind
 from rotorlab.sim.simulator import Simulator
 from rotorlab.vehicles import load_vehicle, vehicle_path
 
@@ -98,12 +99,15 @@ def test_diverging_run_stops_and_keeps_log(tmp_path):
     assert 0 < rows < 1000
 
 
-@pytest.mark.parametrize("vehicle", ["anteos-p2a2", "tuhh-quad"])
-def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle):
+@pytest.mark.parametrize("vehicle, wind", [("anteos-p2a2", False), ("tuhh-quad", False), ("anteos-p2a2", True)])
+def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle, wind):
     """Simulator.tick(controls_only=True) (the runner's loop) reuses the tick's position and velocity stages for
     the next physics step: the same state, sensors and actuator forces bit for bit under changing commands; a bad
     state still stops the run."""
-    plain, fast = (Simulator("free-flight", vehicle, sensor_noise=False) for _ in range(2))
+    def dists():  # wind reaches the velocity stage (opt.wind), which the regrouped step recomputes
+        return [MeanWind(3.0, 30.0), DrydenWind(3.0, 5.0, 2.0, 30.0)] if wind else []
+
+    plain, fast = (Simulator("free-flight", vehicle, sensor_noise=False, disturbances=dists()) for _ in range(2))
     rng = np.random.default_rng(0)
     for _ in range(40):
         cmd = plain.vehicle.hover_collective_pct + rng.uniform(-3.0, 3.0, 4)
