@@ -9,8 +9,8 @@ import pytest
 from rotorlab.cli import main
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import build_scene
-from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.disturbances import DrydenWind, MeanWind
+from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.simulator import Simulator
 from rotorlab.vehicles import load_vehicle, vehicle_path
 
