@@ -208,6 +208,7 @@ class Simulator:
         self.seed = seed
         m = self.model
         self._n_thrust = len(self.scene.thrust_actuators)
+        self._ctrl_per_pct = self.vehicle.ctrl_per_pct
         #: where the rotor commands and the wind go in ``ctrl`` (:func:`set_rotor_ctrl`, :func:`set_wind`): the
         #: thrust actuators, their spin-up twins (same ctrl, the rotor-inertia reaction; None: none) and the
         #: rotor aero actuators, as :func:`strided` slices where they are
@@ -286,10 +287,20 @@ class Simulator:
         return c
 
     def set_rotor_commands(self, rotor_pct) -> None:
-        """Per-rotor commands in %, e.g. from the flight software's mixer or a thrust-stand test."""
-        rotor = np.array(rotor_pct[: self._n_thrust], dtype=float)
+        """Per-rotor commands in % (a sequence, kept as :attr:`rotor_pct`), e.g. from the flight software's mixer or a
+        thrust-stand test."""
+        rotor = tuple(rotor_pct[: self._n_thrust])  # a copy the caller cannot change under the simulator
         self.rotor_pct = rotor
-        set_rotor_ctrl(self._ctrl_v, rotor, self.vehicle, self.thrust_ids, self.spinup_ids)
+        k = self._ctrl_per_pct
+        if k is None:
+            set_rotor_ctrl(self._ctrl_v, np.array(rotor, dtype=float), self.vehicle, self.thrust_ids, self.spinup_ids)
+            return
+        # a linear command map (variable pitch): set_rotor_ctrl's product in floats, one store per actuator group
+        # (the numpy version costs several times more for four rotors, every tick)
+        c = [v * k for v in rotor]
+        self._ctrl_v[self.thrust_ids] = c
+        if self.spinup_ids is not None:
+            self._ctrl_v[self.spinup_ids] = c
 
     def add_axis_input(self, commands_pct) -> None:
         """Add axis commands ``[collective, roll, pitch, yaw]`` (%) to this tick's rotor commands at the

@@ -196,11 +196,17 @@ class VehicleSpec:
         Variable pitch: 1 % is ``blade_pitch_per_pct_rad`` of blade pitch (zero thrust at 0 %). Variable RPM:
         the ESC command is b = command / 100 (TUHH's b in [0, 1]).
         """
-        r = self.rotor
         cmd = np.asarray(cmd_pct, dtype=float)
-        if self.kind == "variable-pitch":
-            return cmd * r.blade_pitch_per_pct_rad
-        return r.speed(cmd / 100.0) ** 2
+        k = self.ctrl_per_pct
+        if k is not None:
+            return cmd * k
+        return self.rotor.speed(cmd / 100.0) ** 2
+
+    @property
+    def ctrl_per_pct(self) -> float | None:
+        """Slope of :meth:`command_to_ctrl` where the map is linear (variable pitch: blade pitch in rad per %),
+        None where it is not (variable RPM)."""
+        return self.rotor.blade_pitch_per_pct_rad if self.kind == "variable-pitch" else None
 
     def dctrl_dcommand(self) -> float:
         """d ctrl / d command at hover trim (per %)."""
