@@ -34,7 +34,7 @@ def vehicle_mixer(vehicle) -> Mixer:
     return Mixer(pos, vehicle.rotor.spin, kind=vehicle.kind, frame="flu")
 
 
-_STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
+_STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)  # Simulator.tick's acceleration-only forward pass, looked up once
 
 #: MuJoCo warnings that mean the run diverged: MuJoCo flags (and resets) NaN/inf states through them, so no
 #: array scan is needed
