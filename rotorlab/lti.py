@@ -19,6 +19,7 @@ __all__ = [
     "is_discrete",
     "freqresp",
     "hinfnorm",
+    "hinfnorm_stable",
     "spectral_abscissa",
     "is_stable",
     "delay_ss",
@@ -102,11 +103,18 @@ def hinfnorm(sys, tols=(1e-10, 1e-8)) -> tuple[float, float]:
     sys = as_ss(sys)
     if not is_stable(sys):
         return float("inf"), float("nan")
-    n = sys.nstates
+    return hinfnorm_stable(*(np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D)),
+                           float(sys.dt) if is_discrete(sys) else 0.0, tols)
+
+
+def hinfnorm_stable(A, B, C, D, dt=0.0, tols=(1e-10, 1e-8)) -> tuple[float, float]:
+    """:func:`hinfnorm` of the stable system ``(A, B, C, D)`` (sample time ``dt`` s, 0 for continuous) from
+    its matrices, without building a StateSpace or checking stability: for optimisers that have already
+    checked stability from the same closed-loop eigenvalues and evaluate the norm thousands of times."""
+    n = A.shape[0]
     if n == 0:
-        return float(np.linalg.norm(sys.D, 2)), 0.0
-    dico = "D" if is_discrete(sys) else "C"
-    A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
+        return float(np.linalg.norm(D, 2)), 0.0
+    dico = "D" if dt else "C"
     p, m = D.shape
     E = np.eye(n)
     jobd = "D" if np.any(D) else "Z"
@@ -117,7 +125,7 @@ def hinfnorm(sys, tols=(1e-10, 1e-8)) -> tuple[float, float]:
             best = (gpeak, fpeak)
     gpeak, fpeak = best
     # discrete peaks come back as an angle in rad/sample
-    wpk = fpeak / float(sys.dt) if dico == "D" else fpeak
+    wpk = fpeak / float(dt) if dico == "D" else fpeak
     return float(gpeak), float(wpk)
 
 

@@ -218,3 +218,33 @@ def test_descends_past_where_the_previous_engine_stopped():
     assert r.gamma < 0.97 * g_old
     assert r.stationarity < 1e-3
     assert r.gamma == pytest.approx(gamma(r.controller.D), rel=1e-9)
+
+
+def test_gradient_sampling_reaches_the_minimum_of_a_max_function():
+    # f(x) = max_i (a_i . x + b_i) + mu/2 |x|^2: convex, non-smooth at the minimum, where 4 pieces are active
+    # in 6 variables; its minimum is the solution of the smooth epigraph QP
+    # min t + mu/2 |x|^2 s.t. a_i . x + b_i <= t (SLSQP, to 1e-12)
+    rng = np.random.default_rng(3)
+    n, k, mu = 6, 4, 0.1
+    A, b = rng.standard_normal((k, n)), rng.standard_normal(k)
+
+    def fg(x):
+        v = A @ x + b
+        i = int(np.argmax(v))
+        return float(v[i] + 0.5 * mu * x @ x), A[i] + mu * x
+
+    from scipy.optimize import minimize
+    qp = minimize(lambda z: z[n] + 0.5 * mu * z[:n] @ z[:n], np.zeros(n + 1), method="SLSQP",
+                  constraints=[{"type": "ineq", "fun": lambda z: z[n] - A @ z[:n] - b}],
+                  options={"ftol": 1e-14, "maxiter": 500})
+    f_star = qp.fun
+    x0 = rng.standard_normal(n)
+    f0, g0 = fg(x0)
+    # plain BFGS with weak Wolfe steps stops short at the kink; gradient sampling from there reaches f*
+    x1, f1, g1 = hs._bfgs(fg, x0, f0, g0, max_iter=200, tol=1e-10, deadline=None, history=[])
+    hist = []
+    _, f2, _ = hs._gradient_sampling(fg, x1, f1, g1, rng=np.random.default_rng(0), max_iter=500, tol=1e-10,
+                                     deadline=None, history=hist, radii=(1e-2, 1e-4, 1e-6, 1e-8))
+    assert f1 - f_star > 1e-7
+    assert f2 == pytest.approx(f_star, abs=1e-10)
+    assert all(b <= a for a, b in zip(hist, hist[1:]))

@@ -43,6 +43,9 @@ class Block:
     count ``nx`` must not depend on theta.
     """
 
+    # True when (A, B, C, D) are linear in theta, so that their derivatives do not depend on theta
+    linear = False
+
     def __init__(self, name: str, params: Sequence[Param], ny: int, nu: int, nx: int, dt: float = 0.0):
         self.name = name
         self.params = list(params)
@@ -102,6 +105,8 @@ class Block:
 
 class StaticGain(Block):
     """Static gain ``u = K y`` with ``K`` of shape ``(nu, ny)``; parameters named ``k[i,j]``."""
+
+    linear = True
 
     def __init__(self, ny: int, nu: int, value=None, name: str = "K", dt: float = 0.0):
         K0 = np.zeros((nu, ny)) if value is None else np.asarray(value, float).reshape(nu, ny)
@@ -244,6 +249,8 @@ class FixedOrderSS(Block):
     discrete: inside radius 0.5) and small B, C, D.
     """
 
+    linear = True
+
     def __init__(self, n: int, ny: int, nu: int, dt: float = 0.0, *, name: str = "K", seed=0, scale: float = 0.1):
         rng = np.random.default_rng(seed)
         A0 = rng.standard_normal((n, n)) * scale
@@ -366,7 +373,9 @@ class Structure:
         :meth:`Block.matrix_derivatives`); the rest of each slice is zero."""
         th = np.asarray(theta, float)
         free = np.asarray(free, bool)
-        key = (th.tobytes(), free.tobytes())
+        # blocks linear in theta (static gains, free state-space matrices) have the same derivatives everywhere:
+        # the optimisers ask for them at every gradient evaluation
+        key = (b"" if all(b.linear for b in self.blocks) else th.tobytes(), free.tobytes())
         if getattr(self, "_dcache", (None,))[0] == key:  # the SQP asks for the same point's derivatives often
             return self._dcache[1]
         nf = int(free.sum())

@@ -443,7 +443,7 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
     prob = _Problem(S, channels, stab, free, scale, poles=poles)
     results = run_starts(prob, th0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, max_iter=max_iter,
                          tol=tol, time_limit_s=time_limit_s, spread=0.3, progress=progress, executor=executor,
-                         sub_iter=SPEC_SUB_ITER)
+                         sub_iter=SPEC_SUB_ITER, sampling=False)
     best, best_key, per_start = None, None, []
     for r in results:
         if isinstance(r, StartFailure):

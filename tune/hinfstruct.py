@@ -30,14 +30,27 @@ Optimisation: a hybrid, alternated in rounds until a whole round gains less than
    function), not a count of small steps;
 2. BFGS on the nonsmooth objective (the exact ab13dd norm, gradient at its peak) with the weak Wolfe line
    search of Lewis & Overton, stopped by HANSO's test (the smallest vector in the convex hull of the
-   gradients at the nearby recent iterates), a failed line search, or a stalled window.
+   gradients at the nearby recent iterates), a failed line search, or a stalled window;
+3. gradient sampling from where BFGS stopped (HANSO's second phase, Burke, Lewis & Overton 2005), with a
+   BFGS metric and the reuse of earlier samples of Curtis & Que (2013): the gradients at ``n + 1`` random
+   points in a ball around x and at x itself; the smallest vector of their convex hull (in the BFGS metric)
+   gives a direction that lowers every nearby piece of the max function at once; Armijo backtracking; the
+   ball shrinks (1e-3 to 1e-6 relative) when the hull holds a vector shorter than ``tol`` (approximate
+   Clarke stationarity), when no step decreases, or when progress stalls.
 
 Why a hybrid: the tangent program uses the frequency structure (many peaks of equal height at the optimum
 of a MIMO or lightly damped problem, where a single-gradient method zig-zags) and certifies stationarity,
-but restarts its curvature model every outer step; BFGS accumulates curvature across steps and keeps
-descending along the non-smooth valleys where the previous engine stopped at a point with a usable gradient
-(benchmarks/bench_hinfstruct.py has the numbers). Random starts are random controllers of log-uniformly
-drawn size (three decades), each made stabilising by phase one, and run through the project's executor.
+but restarts its curvature model every outer step and linearises each peak at a fixed frequency, which
+misjudges a resonance that is narrower than the step moves it; BFGS accumulates curvature across steps and
+descends along non-smooth valleys, but a single gradient cannot certify or escape a kink where several
+peaks are active, so at such points it creeps (on COMPleib's HE3, about 1e-5 per iteration beside a
+closed-loop mode damped to 2e-4, where Nelder-Mead still descended). Gradient sampling is what HANSO
+uses there: it needs no knowledge of which peaks are active, only gradients near x, and it converges to
+Clarke-stationary points with probability one; its cost, ``n + 1`` exact norms per step, is paid only after
+BFGS has stopped (benchmarks/bench_hinfstruct.py and benchmarks/compleib.py have the numbers; the cascade
+tuner, whose objective is a grid search over ten goals, skips it to keep a start under a second). Random
+starts are random controllers of log-uniformly drawn size (three decades), each made stabilising by phase
+one, and run through the project's executor.
 
 The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
 goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
@@ -83,6 +96,9 @@ INFEASIBLE_WINDOW = 8
 # exact-penalty weight of hard-goal violations in the BFGS phase (above the Lagrange multipliers of the
 # cascade specs, whose goals are normalised to 1)
 PENALTY = 10.0
+# gradient-sampling radii (relative to the rms size of the scaled variables) and iterations per round
+GS_RADII = (1e-3, 1e-4, 1e-5, 1e-6)
+GS_ROUND = 300
 
 
 class NotStabilisableError(ValueError):
@@ -437,23 +453,36 @@ class _Problem:
                                                [c.Pgrid for c in self.channels])
         self._peak_cache = (None, None)
         self._mat_cache = (None, None, None)
+        self._exact_cache = {}
         c0 = self.channels[0]
         # one plain H-inf channel (hinfstruct): its objective is the exact ab13dd norm
         self.exact = (len(self.channels) == 1 and c0.exact_peak and c0.weight is None and c0.offset == 0.0
                       and c0.mode == "max" and not c0.hard and poles is None)
+        self._exact_part = _partition(c0.P, c0.nmeas, c0.ncon) if self.exact else None
 
     def __getstate__(self):
         d = self.__dict__.copy()
         d["_peak_cache"] = (None, None)
         d["_mat_cache"] = (None, None, None)
+        d["_exact_cache"] = {}
         return d
 
     def exact_peak(self, theta):
-        """(H-inf norm, peak frequency rad/s) of the first channel's closed loop by ab13dd (rotorlab.lti)."""
-        ch = self.channels[0]
-        mats = _cl_matrices(ch.P, ch.nmeas, ch.ncon, *self.s.matrices(theta))
-        g, w = lti.hinfnorm(ct.ss(*mats, ch.dt) if ch.dt else ct.ss(*mats), tols=(1e-8,))
-        return g, (w if np.isfinite(w) else ch.lo)
+        """(H-inf norm, peak frequency rad/s) of the first channel's closed loop by ab13dd (rotorlab.lti), for
+        a stabilising theta (every caller has checked stability on the same closed-loop A). The last few
+        points are cached: the merit, the BFGS objective and the tangent program's active set ask for the
+        same point in turn."""
+        key = np.asarray(theta, float).tobytes()
+        hit = self._exact_cache.get(key)
+        if hit is None:
+            ch = self.channels[0]
+            mats = _cl_matrices(ch.P, ch.nmeas, ch.ncon, *self.matrices(theta)[0], part=self._exact_part)
+            g, w = lti.hinfnorm_stable(*mats, ch.dt, tols=(1e-8,))
+            hit = (g, (w if np.isfinite(w) else ch.lo))
+            if len(self._exact_cache) >= 8:
+                self._exact_cache.pop(next(iter(self._exact_cache)))
+            self._exact_cache[key] = hit
+        return hit
 
     def matrices(self, theta, grad=False):
         """Controller matrices (and their derivatives along the free parameters when ``grad``) at theta, cached
@@ -596,7 +625,7 @@ class _Problem:
         narrower than the grid spacing peak), as (value, w) pairs of the plain H-inf channel."""
         ch = self.channels[0]
         g, wpk = self.exact_peak(theta)
-        lam = np.linalg.eigvals(_cl_A(_partition(ch.P, ch.nmeas, ch.ncon), *self.s.matrices(theta)))
+        lam = np.linalg.eigvals(_cl_A(self._exact_part, *self.matrices(theta)[0]))
         wm = np.abs(np.angle(lam)) / ch.dt if ch.dt else np.abs(lam.imag)
         wm = np.unique(np.clip(wm[wm > 0], ch.lo, ch.hi))
         pts = [(float(g), float(min(max(wpk, ch.lo), ch.hi)))]
@@ -701,10 +730,6 @@ def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, sub_
         peaks = prob.all_peaks(theta)
         for ci, ch in enumerate(prob.channels):
             found = [w for _, w in peaks[ci]]
-            if ch.exact_peak and not prob.exact:  # the exact channel's all_peaks already holds it
-                wpk = lti.hinfnorm(closed_loop(ch.P, ch.nmeas, ch.ncon, prob.s.ss(theta)))[1]
-                if np.isfinite(wpk):
-                    found.append(min(max(wpk, ch.lo), ch.hi))
             new = []
             for w in found:
                 if all(abs(np.log(w / w0)) > 1e-3 for w0 in active[ci] + new):
@@ -786,17 +811,22 @@ def _weak_wolfe(fg, x, f, g, d, c1=1e-4, c2=0.5, max_eval=40):
     return keep + (False,)
 
 
-def _min_norm_hull(G):
-    """Smallest-norm vector of the convex hull of the columns of ``G`` (nx, k): the HANSO / gradient-sampling
-    stationarity measure. ``min ||G l||, l >= 0, sum l = 1`` as a non-negative least-squares problem with the
-    simplex equality as a heavily weighted extra row (scipy's nnls; k is at most a few dozen)."""
+def _hull_weights(G):
+    """Convex weights ``l`` of the smallest-norm vector ``G l`` of the convex hull of the columns of ``G``
+    (nx, k): ``min ||G l||, l >= 0, sum l = 1`` as a non-negative least-squares problem with the simplex
+    equality as a heavily weighted extra row (scipy's nnls; k is at most a few dozen)."""
     k = G.shape[1]
     if k == 1:
-        return G[:, 0]
+        return np.ones(1)
     w = 1e3 * max(np.abs(G).max(), 1e-300)
     lam, _ = nnls(np.vstack([G, np.full((1, k), w)]), np.r_[np.zeros(G.shape[0]), w])
-    lam = lam / max(lam.sum(), 1e-300)
-    return G @ lam
+    return lam / max(lam.sum(), 1e-300)
+
+
+def _min_norm_hull(G):
+    """Smallest-norm vector of the convex hull of the columns of ``G``: the HANSO / gradient-sampling
+    stationarity measure."""
+    return G @ _hull_weights(G)
 
 
 def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None):
@@ -841,6 +871,76 @@ def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None):
     return x, f, g
 
 
+def _gradient_sampling(fg, x, f, g, *, rng, max_iter, tol, deadline, history, radii=GS_RADII):
+    """Gradient sampling (Burke, Lewis & Overton 2005; HANSO's second phase) with a BFGS metric and sample
+    reuse (Curtis & Que 2013), for the points where BFGS stalls.
+
+    At every iteration the gradients at ``n + 1`` points drawn uniformly in a ball of radius ``eps`` around
+    ``x`` (points drawn earlier that are still inside the ball are reused, so only the shortfall is drawn)
+    and at ``x`` itself are combined into the smallest vector of their convex hull in the metric of the BFGS
+    matrix ``H``; ``-H`` times it is a descent direction for every nearby piece of the max function at once,
+    which a single gradient (BFGS) is not at a kink. A backtracking Armijo step follows. The radius shrinks
+    through ``radii`` (relative to the rms size of x, at least one scaled unit) when the sampled hull holds a
+    vector shorter than ``tol * max(1, |f|)`` (approximate Clarke stationarity, HANSO's test), when no step
+    decreases f, or when the last ``max(20, 3 n)`` steps together gained less than ``tol / 10``."""
+    n = x.size
+    H = np.eye(n)
+    pool = []  # (point, gradient) already evaluated
+    window = max(20, 3 * n)
+    it = 0
+    for rel in radii:
+        track = [f]
+        while it < max_iter:
+            if deadline is not None and time.perf_counter() > deadline:
+                return x, f, g
+            eps = rel * max(1.0, float(np.sqrt(np.mean(x * x))))
+            pool = [(p, gp) for p, gp in pool if np.linalg.norm(p - x) <= eps][-n:]
+            need = n - len(pool)
+            if need > 0:
+                u = rng.standard_normal((need, n))
+                u *= (eps * rng.uniform(size=(need, 1)) ** (1.0 / n)) / np.linalg.norm(u, axis=1)[:, None]
+                for p in x + u:
+                    fp, gp = fg(p)
+                    if np.isfinite(fp):
+                        pool.append((p, gp))
+            G = np.column_stack([g] + [gp for _, gp in pool])
+            if np.linalg.norm(_min_norm_hull(G)) <= tol * max(1.0, abs(f)):
+                break
+            try:
+                L = np.linalg.cholesky(H)
+            except np.linalg.LinAlgError:
+                H, L = np.eye(n), np.eye(n)
+            lam = _hull_weights(L.T @ G)  # smallest hull vector in the H metric
+            d = -H @ (G @ lam)
+            dec = float(-(G @ lam) @ d)
+            t, ok = 1.0, False
+            for _ in range(30):
+                ft, gt = fg(x + t * d)
+                if np.isfinite(ft) and ft < f - 1e-8 * t * dec:
+                    ok = True
+                    break
+                t *= 0.5
+            if not ok:
+                if np.any(H != np.eye(n)):  # a stale metric: retry with steepest descent before shrinking
+                    H = np.eye(n)
+                    continue
+                break
+            s, y = t * d, gt - g
+            pool.append((x, g))
+            x, f, g = x + s, ft, gt
+            history.append(f)
+            track.append(f)
+            it += 1
+            sy = float(s @ y)
+            if sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
+                r = 1.0 / sy
+                Hy = H @ y
+                H = H - r * (np.outer(s, Hy) + np.outer(Hy, s)) + (r * r * float(y @ Hy) + r) * np.outer(s, s)
+            if len(track) > window and track[-window - 1] - f <= 0.1 * tol * max(abs(f), 1e-300):
+                break
+    return x, f, g
+
+
 class _Objective:
     """f(x) = the largest soft channel value (exact ab13dd norm for the plain H-inf channel) plus, when the
     problem has hard goals, the exact penalty ``PENALTY * max(0, largest hard value - HARD_BOUND)``, and its
@@ -878,12 +978,15 @@ class _Objective:
         return float(f), g * prob.scale
 
 
-def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadline, sub_iter=HYBRID_SUB_ITER):
+def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadline, sub_iter=HYBRID_SUB_ITER,
+            rng=None):
     """Rounds of (1) the tangent program over every active peak frequency (trust-region SQP, stopped on its
     stationarity measure) and (2) nonsmooth BFGS with weak Wolfe steps, until a whole round gains less than
-    ``tol`` relative; returns (theta, merit, history, last predicted relative decrease). With hard goals the
-    BFGS phase minimises the exact penalty (:class:`_Objective`) and its end point is kept only when it is
-    not worse in the merit (violation first, then the objective)."""
+    ``tol`` relative or ``max_iter`` iterations are spent; then, when ``rng`` is given, rounds of (3)
+    gradient sampling, (1) and (2) under a budget of ``max_iter`` more iterations, until a whole round gains
+    less than ``tol``. Returns (theta, merit, history, last predicted relative decrease). With hard goals
+    phases 2 and 3 minimise the exact penalty (:class:`_Objective`) and their end point is kept only when it
+    is not worse in the merit (violation first, then the objective)."""
     x = prob.x_of(theta_start)
     lo, hi = prob.x_of(lower), prob.x_of(upper)
     fg = _Objective(prob, lo, hi)
@@ -892,23 +995,41 @@ def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadlin
         raise NotStabilisableError("the start does not stabilise the closed loop")
     history = [m[1]]
     pred = np.inf
-    while len(history) <= max_iter:
+    cap = max_iter  # iterations of the current stage: tangent program + BFGS, then as many again with sampling
+    sampling = False
+    while True:
         m_round = m
-        x, m, pred = _sqp(prob, x, m, lo, hi, max_iter=min(SQP_ROUND, max_iter + 1 - len(history)), tol=tol,
-                          deadline=deadline, history=history, sub_iter=sub_iter)
+        if sampling and len(history) <= cap:
+            f, g = fg(x)
+            xg, f, g = _gradient_sampling(fg, x, f, g, rng=rng, max_iter=min(GS_ROUND, cap + 1 - len(history)),
+                                          tol=tol, deadline=deadline, history=history)
+            mg = prob.merit(prob.theta(xg))
+            if not _better(m, mg):
+                x, m = xg, mg
+        if len(history) <= cap:
+            x, m, pred = _sqp(prob, x, m, lo, hi, max_iter=min(SQP_ROUND, cap + 1 - len(history)), tol=tol,
+                              deadline=deadline, history=history, sub_iter=sub_iter)
         if fg.hard and m[0] <= 1e-9 and pred < tol:
             # feasible and stationary for the tangent program with the hard goals as constraints: BFGS on the
             # exact penalty can then only creep along the constraint boundary (measured on the P2-A2 spec:
             # 23 iterations for -0.02 %, ending above the tangent program's point)
             break
-        f, g = fg(x)
-        xb, f, g = _bfgs(fg, x, f, g, max_iter=min(max(BFGS_ROUND, 10 * x.size), max_iter + 1 - len(history)),
-                         tol=tol, deadline=deadline, history=history)
-        mb = prob.merit(prob.theta(xb))
-        if not _better(m, mb):
-            x, m = xb, mb
-        if not _better(m, m_round, tol) or (deadline is not None and time.perf_counter() > deadline):
+        if len(history) <= cap:
+            f, g = fg(x)
+            xb, f, g = _bfgs(fg, x, f, g, max_iter=min(max(BFGS_ROUND, 10 * x.size), cap + 1 - len(history)),
+                             tol=tol, deadline=deadline, history=history)
+            mb = prob.merit(prob.theta(xb))
+            if not _better(m, mb):
+                x, m = xb, mb
+        if deadline is not None and time.perf_counter() > deadline:
             break
+        if _better(m, m_round, tol) and len(history) <= cap:
+            continue
+        if rng is None or sampling:
+            break
+        # the tangent program and BFGS have stalled (or spent their budget): rounds that start with gradient
+        # sampling, with a budget of as many iterations again, until a whole round gains less than tol
+        sampling, cap = True, len(history) + max_iter
     return prob.theta(x), m, history, pred
 
 
@@ -1043,19 +1164,20 @@ def _scaled_start(prob: _Problem, theta0, rng, lower, upper, decades=(-1.5, 1.5)
 
 
 def _run_start(job):
-    prob, theta, lower, upper, max_iter, tol, time_limit_s, sub_iter, seed = job
+    prob, theta, lower, upper, max_iter, tol, time_limit_s, sub_iter, sampling, seed = job
     t0, c0 = time.perf_counter(), time.process_time()
-    th = _stabilise(prob, theta, lower, upper, np.random.default_rng(seed))
+    rng = np.random.default_rng(seed)
+    th = _stabilise(prob, theta, lower, upper, rng)
     if isinstance(th, StartFailure):
         return th
     deadline = None if time_limit_s is None else t0 + time_limit_s
     th, m, hist, pred = _hybrid(prob, th, lower, upper, max_iter=max_iter, tol=tol, deadline=deadline,
-                                sub_iter=sub_iter)
+                                sub_iter=sub_iter, rng=rng if sampling else None)
     return th, m, hist, pred, (time.perf_counter() - t0, time.process_time() - c0)
 
 
 def run_starts(prob: _Problem, theta0, lower, upper, *, starts=1, seed=0, n_jobs=1, executor=None, max_iter=60,
-               tol=1e-4, time_limit_s=None, spread=None, sub_iter=HYBRID_SUB_ITER, progress=False):
+               tol=1e-4, time_limit_s=None, spread=None, sub_iter=HYBRID_SUB_ITER, sampling=True, progress=False):
     """Optimise from ``theta0`` and ``starts - 1`` seeded random starts: multiplicative perturbations of
     theta0 with log-std ``spread`` when given (the cascade), else random controllers of log-uniform size
     (:func:`_scaled_start`). Each start first runs the stabilisation phase.
@@ -1071,7 +1193,8 @@ def run_starts(prob: _Problem, theta0, lower, upper, *, starts=1, seed=0, n_jobs
         thetas = [_perturbed_start(prob, theta0, rng, spread, lower, upper) for _ in range(max(starts, 1) - 1)]
     thetas = [np.clip(theta0, lower, upper)] + thetas
     seeds = task_seeds(int(rng.integers(1 << 31)), len(thetas))
-    jobs = [(prob, th, lower, upper, max_iter, tol, time_limit_s, sub_iter, s) for th, s in zip(thetas, seeds)]
+    jobs = [(prob, th, lower, upper, max_iter, tol, time_limit_s, sub_iter, sampling, s)
+            for th, s in zip(thetas, seeds)]
     if executor is not None:
         return list(executor.map(_run_start, jobs, desc="starts", progress=progress))
     ex = LocalExecutor(n_jobs) if n_jobs and n_jobs > 1 else SerialExecutor()
