@@ -146,6 +146,18 @@ def nelder_mead(P, ny, nu, K, fev):
     return min(float(r.fun), f(K.ravel()))
 
 
+def hinfsyn_bound(P, ny, nu):
+    """Full-order optimum (control.hinfsyn, re-verified by ab13dd), or nan where D12 lacks full column rank or
+    D21 full row rank: there SLICOT's sb10ad does not apply (on HE4, D21 = 0, it never returns, which is what
+    kept the previous run of this script from finishing)."""
+    D = np.asarray(P.D, float)
+    nz, nw = P.noutputs - ny, P.ninputs - nu
+    if np.linalg.matrix_rank(D[:nz, nw:]) < nu or np.linalg.matrix_rank(D[nz:, :nw]) < ny:
+        return np.nan
+    _, CLf, _, _ = ct.hinfsyn(P, ny, nu)
+    return lti.hinfnorm(CLf)[0]
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--starts", type=int, default=4)
@@ -165,11 +177,7 @@ def main():
         K = np.asarray(r.controller.D)
         stable, g, grid = verify(P, ny, nu, K)
         nm = nelder_mead(P, ny, nu, K, a.baseline_fev)
-        try:
-            _, CLf, _, _ = ct.hinfsyn(P, ny, nu)
-            bound = lti.hinfnorm(CLf)[0]
-        except Exception:  # singular D12/D21 (HE4, AC15 have D21 = 0): hinfsyn's rank conditions fail
-            bound = np.nan
+        bound = hinfsyn_bound(P, ny, nu)
         pub = min((v for _, v in PUBLISHED.get(name, ())), default=np.nan)
         gs = np.array(r.starts)
         rows.append((name, P.nstates, K.size, g, stable, grid, nm, bound, pub, int(np.sum(gs <= g * 1.02)), gs.size,
