@@ -72,7 +72,7 @@ import numpy as np
 from scipy.optimize import minimize, nnls
 
 from rotorlab import lti
-from rotorlab.executor import LocalExecutor, SerialExecutor, task_seeds
+from rotorlab.executor import map_tasks, task_seeds
 from rotorlab.tune.blocks import Block, StaticGain, Structure
 
 __all__ = ["Channel", "HinfstructResult", "hinfstruct", "closed_loop", "NotStabilisableError",
@@ -1195,11 +1195,7 @@ def run_starts(prob: _Problem, theta0, lower, upper, *, starts=1, seed=0, n_jobs
     seeds = task_seeds(int(rng.integers(1 << 31)), len(thetas))
     jobs = [(prob, th, lower, upper, max_iter, tol, time_limit_s, sub_iter, sampling, s)
             for th, s in zip(thetas, seeds)]
-    if executor is not None:
-        return list(executor.map(_run_start, jobs, desc="starts", progress=progress))
-    ex = LocalExecutor(n_jobs) if n_jobs and n_jobs > 1 else SerialExecutor()
-    with ex:
-        return list(ex.map(_run_start, jobs, desc="starts", progress=progress))
+    return map_tasks(_run_start, jobs, executor=executor, n_jobs=n_jobs or 1, desc="starts", progress=progress)
 
 
 # ----------------------------------------------------------------------------------------------------------
