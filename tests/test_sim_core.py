@@ -2,6 +2,7 @@
 
 import json
 
+import mujoco
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -11,7 +12,7 @@ from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import build_scene
 from rotorlab.sim.disturbances import DrydenWind, MeanWind
 from rotorlab.sim.runner import run_scenario
-from rotorlab.sim.simulator import Simulator
+from rotorlab.sim.simulator import Simulator, body_wind, set_wind
 from rotorlab.vehicles import load_vehicle, vehicle_path
 
 
@@ -120,6 +121,29 @@ def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle, wind):
     fast.data.qvel[0] = np.nan
     fast.tick(controls_only=True)
     assert "mjWARN_BADQ" in fast.check()
+
+
+def test_set_wind_of_one_simulation_writes_the_body_wind_of_many():
+    """set_wind's float path (one simulation, every windy tick) puts the same floats into opt.wind and the rotor
+    aero controls as its array path (the batched runner) and as numpy's matrix product body_wind, for random
+    airframe orientations and winds."""
+    aero = {"inflow": slice(1, 20, 6), "hx": slice(2, 21, 6), "hy": slice(3, 22, 6)}
+    rng = np.random.default_rng(3)
+    q = rng.standard_normal((200, 4))
+    xmat = np.empty((200, 9))
+    for k, quat in enumerate(q / np.linalg.norm(q, axis=1, keepdims=True)):
+        mujoco.mju_quat2Mat(xmat[k], quat)
+    wind = rng.normal(0.0, 4.0, (200, 3))
+    many_ctrl, many_opt = np.zeros((200, 24)), np.zeros((200, 3))
+    set_wind(many_opt, many_ctrl, xmat, wind, aero)
+    for k in range(200):
+        ctrl, opt = np.zeros(24), np.zeros(3)
+        set_wind(opt, ctrl, xmat[k], wind[k], aero)
+        assert np.array_equal(ctrl, many_ctrl[k]) and np.array_equal(opt, wind[k])
+        wb = body_wind(xmat[k], wind[k])
+        assert np.array_equal(ctrl[[2, 3, 1]], wb) and np.array_equal(ctrl[[20, 21, 19]], wb)
+    set_wind(opt, ctrl, None, wind[0], aero)  # no airframe: the wind unrotated
+    assert np.array_equal(ctrl[[2, 3, 1]], wind[0])
 
 
 def test_cli_list_and_run(tmp_path, capsys):
