@@ -16,6 +16,7 @@ from rotorlab.sim.disturbances.dryden import DrydenTurbulence
 from rotorlab.sim.disturbances.dryden_wind import turbulence_axes_ned
 from rotorlab.sim.disturbances.gust import one_minus_cosine
 from rotorlab.sim.disturbances.input_disturbance_step import InputDisturbanceStep
+from rotorlab.sim.disturbances.mean_wind import total_wind_ned
 from rotorlab.sim.disturbances.recirculation_moment import RecirculationMoment
 from rotorlab.sim.disturbances.rope_pull import RopePull
 from rotorlab.sim.runner import run_scenario
@@ -75,6 +76,19 @@ def test_logged_dryden_wind_is_the_generator_output_for_the_seed():
     expected = gen @ turbulence_axes_ned(0.0).T + np.array([-2.5, 0.0, 0.0])  # plus the mean headwind (NED)
     logged = np.column_stack([r.log["wind_u"], r.log["wind_v"], r.log["wind_w"]])
     np.testing.assert_allclose(logged, expected, rtol=0, atol=1e-12)
+
+
+def test_logged_wind_is_total_wind_ned_bit_for_bit():
+    """The logged wind (summed in floats every tick) is total_wind_ned's numpy sum of the wind disturbances,
+    the batched runner's, bit for bit, signed zeros included (a mean wind without vertical component)."""
+    winds = [MeanWind(2.5, 30.0), DrydenWind(2.5, 5.0, 3.0, 40.0), CosineGust(0.5, 1.0, 3.0, 90.0)]
+    sim = Simulator("free-flight", "anteos-p2a2", sensor_noise=False, disturbances=winds)
+    for _ in range(100):
+        logged = np.array([winds[0].values(sim)[k] for k in ("wind_u", "wind_v", "wind_w")])
+        total = total_wind_ned(winds, sim.time)
+        assert np.array_equal(logged, total) and np.array_equal(np.signbit(logged), np.signbit(total))
+        assert winds[1].values(sim) == {} and winds[2].values(sim) == {}
+        sim.tick()
 
 
 def test_one_minus_cosine_gust_shape_in_the_log():
