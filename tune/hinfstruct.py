@@ -452,7 +452,6 @@ class _Problem:
         self.grid_points = _Points(self.channels, [(i, c.grid) for i, c in enumerate(self.channels)],
                                                [c.Pgrid for c in self.channels])
         self._peak_cache = (None, None)
-        self._mat_cache = (None, None, None)
         self._exact_cache = {}
         c0 = self.channels[0]
         # one plain H-inf channel (hinfstruct): its objective is the exact ab13dd norm
@@ -463,7 +462,6 @@ class _Problem:
     def __getstate__(self):
         d = self.__dict__.copy()
         d["_peak_cache"] = (None, None)
-        d["_mat_cache"] = (None, None, None)
         d["_exact_cache"] = {}
         return d
 
@@ -485,14 +483,9 @@ class _Problem:
         return hit
 
     def matrices(self, theta, grad=False):
-        """Controller matrices (and their derivatives along the free parameters when ``grad``) at theta, cached
-        for the last theta: the channel values and the stability terms of one callback ask for the same."""
-        key = np.asarray(theta, float).tobytes()
-        if self._mat_cache[0] != key:
-            self._mat_cache = (key, self.s.matrices(theta), None)
-        if grad and self._mat_cache[2] is None:
-            self._mat_cache = self._mat_cache[:2] + (self.s.matrix_derivatives(theta, self.free),)
-        return self._mat_cache[1], (self._mat_cache[2] if grad else None)
+        """Controller matrices (and their derivatives along the free parameters when ``grad``) at theta; the
+        Structure caches both for the last point, which the channel values and stability terms share."""
+        return self.s.matrices(theta), (self.s.matrix_derivatives(theta, self.free) if grad else None)
 
     def theta(self, x):
         th = self.theta0.copy()
