@@ -43,7 +43,8 @@ class Block:
     count ``nx`` must not depend on theta.
     """
 
-    # True when (A, B, C, D) are linear in theta, so that their derivatives do not depend on theta
+    # True when (A, B, C, D) are linear in theta (no constant part): the derivatives are then exact unit-vector
+    # matrices that do not depend on theta
     linear = False
 
     def __init__(self, name: str, params: Sequence[Param], ny: int, nu: int, nx: int, dt: float = 0.0):
@@ -59,8 +60,11 @@ class Block:
 
         Block maps are low-degree rational functions of theta (linear for most blocks), so a central
         difference is accurate to ~1e-9 and keeps user-defined blocks free of hand-written derivatives;
-        blocks on the optimiser's hot path override this with exact derivatives.
+        blocks marked ``linear`` get exact ones (the matrices of each unit parameter vector), others on the
+        optimiser's hot path override this with exact derivatives.
         """
+        if self.linear:
+            return _unit_derivatives(self, idx)
         th = np.asarray(theta, float)
         out = []
         for i in idx:
@@ -116,10 +120,6 @@ class StaticGain(Block):
     def matrices(self, theta):
         return (np.zeros((0, 0)), np.zeros((0, self.ny)), np.zeros((self.nu, 0)),
                 np.asarray(theta, float).reshape(self.nu, self.ny))
-
-    def matrix_derivatives(self, theta, idx):
-        """Exact: the map is linear, d K / d k[i,j] is the unit matrix E_ij."""
-        return _unit_derivatives(self, idx)
 
 
 def _unit_derivatives(block, idx):
@@ -266,10 +266,6 @@ class FixedOrderSS(Block):
             params += [Param(f"{tag}[{i},{j}]", float(M[i, j])) for i in range(M.shape[0]) for j in range(M.shape[1])]
         self._n = n
         super().__init__(name, params, ny, nu, n, dt)
-
-    def matrix_derivatives(self, theta, idx):
-        """Exact: every parameter is one matrix entry, its derivative a unit matrix."""
-        return _unit_derivatives(self, idx)
 
     def matrices(self, theta):
         n, ny, nu = self._n, self.ny, self.nu
