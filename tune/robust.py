@@ -330,9 +330,10 @@ def h_lim_analysis(W_delta, V_nom, G=None, rel_tol: float = 1e-3, s_tol: float =
     if G is not None:
         Gs = _finite_ss(G, "G")
         _same_domain(Gs, V, "h_lim_analysis")
-        v_inv = bool(abs(_dc(V) * _dc(Gs) + 1.0) < 1e-6)
+        s_dc = abs(_dc(V) * _dc(Gs) + 1.0)
+        v_inv = bool(s_dc < 1e-6)
         if peak == 0.0:
-            sens = abs(_dc(V) * _dc(Gs) + 1.0)
+            sens = s_dc
         elif math.isfinite(peak):  # a continuous norm reached at infinite frequency has no loop gain there
             w1 = np.array([peak])
             sens = abs(complex(lti.freqresp(V, w1)[0, 0, 0]) * complex(lti.freqresp(Gs, w1)[0, 0, 0]) + 1.0)
