@@ -129,7 +129,7 @@ def verify(P, ny, nu, K):
     Kpad = np.zeros((P.ninputs, P.noutputs))
     Kpad[nw:, nz:] = K
     CL = ct.feedback(P, ct.ss([], [], [], Kpad), sign=1)[:nz, :nw]
-    stable = bool(np.max(np.linalg.eigvals(np.asarray(CL.A)).real) < 0)
+    stable = lti.is_stable(CL)
     g = lti.hinfnorm(CL)[0]
     w = np.logspace(-4, 4, 40000)
     grid = float(np.max(np.linalg.svd(lti.freqresp(CL, w), compute_uv=False)))
