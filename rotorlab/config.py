@@ -17,7 +17,7 @@ from pathlib import Path
 
 from rotorlab.errors import ConfigError
 
-__all__ = ["read_toml", "Table", "REQUIRED"]
+__all__ = ["read_toml", "Table", "REQUIRED", "did_you_mean"]
 
 REQUIRED = object()  # default of a field that must be given
 
@@ -51,7 +51,8 @@ def _is_number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def _did_you_mean(value: str, choices) -> str | None:
+def did_you_mean(value: str, choices) -> str | None:
+    """The hint every unknown-name error gives: the closest of ``choices`` (difflib), or None."""
     close = difflib.get_close_matches(value, list(choices), n=1)
     return f"did you mean '{close[0]}'?" if close else None
 
@@ -169,7 +170,7 @@ class Table:
         if not given:
             return v
         if not isinstance(v, str) or (choices and v not in choices):
-            hint = _did_you_mean(v, choices) if isinstance(v, str) and choices else None
+            hint = did_you_mean(v, choices) if isinstance(v, str) and choices else None
             raise self.error(key, expected=f"one of {list(choices)}" if choices else "a string", got=v, hint=hint)
         return v
 
@@ -185,7 +186,7 @@ class Table:
             raise self.error(key, expected="a list of strings", got=v)
         for x in (v if given and choices else ()):
             if x not in choices:
-                raise self.error(key, expected=f"names among {list(choices)}", got=x, hint=_did_you_mean(x, choices))
+                raise self.error(key, expected=f"names among {list(choices)}", got=x, hint=did_you_mean(x, choices))
         return list(v) if v is not None else v
 
     # -- strictness --
@@ -195,8 +196,7 @@ class Table:
             unknown = [k for k in self.data if k not in self.known]
             if unknown:
                 k = unknown[0]
-                close = difflib.get_close_matches(k, sorted(self.known), n=1, cutoff=0.6)
                 raise self.error(k, "unknown key", expected=f"one of {sorted(self.known)}", got=k,
-                                 hint=f"did you mean '{close[0]}'?" if close else None)
+                                 hint=did_you_mean(k, sorted(self.known)))
         for child in self._children:
             child.check_unknown()

@@ -9,12 +9,12 @@ scenario's ``metrics(log, ctx)`` function if the module has one.
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import importlib
 import math
 from collections.abc import Callable
 from typing import Any
 
+from rotorlab.config import did_you_mean
 from rotorlab.errors import ConfigError, UnknownNameError
 
 # scenario name -> module under rotorlab.sim.scenarios
@@ -96,9 +96,8 @@ def merged_options(ctx: Context, defaults: dict) -> dict:
     """
     unknown = sorted(set(ctx.options) - set(defaults))
     if unknown:
-        close = difflib.get_close_matches(unknown[0], sorted(defaults), n=1)
         raise ConfigError(field=f"options.{unknown[0]}", expected=f"one of {sorted(defaults)}", got=unknown[0],
-                          hint=f"did you mean '{close[0]}'?" if close else None)
+                          hint=did_you_mean(unknown[0], sorted(defaults)))
 
     def number(x):
         return isinstance(x, (int, float)) and not isinstance(x, bool)
