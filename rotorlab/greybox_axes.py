@@ -107,11 +107,12 @@ def truth(vehicle, axis: str, options: dict | None = None) -> dict:
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
     key = (repr(v), axis, tuple(sorted((options or {}).items())))
     if key not in _TRUTH:
+        ph = physical(v, axis)
         fit = _fit_experiment(v, axis, seed=0, periods=3, restarts=0, options=dict(options or {}), sensor_noise=False,
-                              theta0=physical(v, axis))
+                              theta0=ph)
         if isinstance(fit, str):
             raise RuntimeError(f"the noise-free {axis} experiment that defines the truth stopped: {fit}")
-        _TRUTH[key] = {**physical(v, axis), **fit.params_free}
+        _TRUTH[key] = {**ph, **fit.params_free}
     return dict(_TRUTH[key])
 
 
@@ -147,9 +148,10 @@ def small_signal_truth(vehicle, axis: str, options: dict | None = None) -> dict:
         Y[k] = np.linalg.solve(np.eye(2) + Gz @ np.array([[kp, kd]]), Gz[:, 0] * kp * R[k])
     y = np.fft.irfft(Y, n=n, axis=0)
     pd = prbs_periodic.pd_controller(axis, kp, kd, dt)
+    ph = physical(v, axis)
     res = oe_fit_closed_loop(structure(v, axis), ct.ss([], [], [], pd.D, dt), r, y, dt, feedback_output=(0, 1),
-                             periods=2, theta0=physical(v, axis), reweight=False)
-    return {**physical(v, axis), **{k: float(res.params[k]) for k in res.free}}
+                             periods=2, theta0=ph, reweight=False)
+    return {**ph, **{k: float(res.params[k]) for k in res.free}}
 
 
 def structure(vehicle, axis: str):
