@@ -48,14 +48,15 @@ def run(ctx: StageContext) -> dict:
     flight = _own(ctx, w, "pbsid-flight", "flight", "flight", 1)
     pair = _own(ctx, w, "pbsid-testbed-n2", "id", "testbed-n2", 2)
     band = br.band(w, BAND_LEVEL)
+    poles_c = br.poles_continuous()
     stack = {k: np.stack([np.asarray(getattr(m.sys, k), float) for m in br.models]) for k in "ABCD"}
     np.savez(ctx.work / "replicas.npz", w_rad_s=w, mag_lo=band["mag_lo"][:, 0, 0], mag_hi=band["mag_hi"][:, 0, 0],
              phase_lo=band["phase_lo"][:, 0, 0], phase_hi=band["phase_hi"][:, 0, 0],
-             spread=spread, poles_c=br.poles_continuous(), **stack)
+             spread=spread, poles_c=poles_c, **stack)
     return {"model": "pbsid", "n_boot": ctx.settings["n_boot"], "order": int(st["order"]),
             "w_delta_order": int(W.nstates), "w_delta_peak": float(Wmag.max()), "w_delta_dc": float(Wmag[0]),
-            "poles_c_median": [[float(z.real), float(z.imag)] for z in np.median(br.poles_continuous().real, 0)
-                               + 1j * np.median(np.abs(br.poles_continuous().imag), 0)],
+            "poles_c_median": [[float(z.real), float(z.imag)] for z in np.median(poles_c.real, 0)
+                               + 1j * np.median(np.abs(poles_c.imag), 0)],
             **({"flight": flight} if flight else {}), **({"testbed_n2": pair} if pair else {})}
 
 
