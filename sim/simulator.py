@@ -276,7 +276,7 @@ class Simulator:
             bias = self.imu.draw_bias(self.rng) if self.sensor_noise else np.zeros(self.imu.n_noisy)
             self._noise = self.imu.noise(self.rng, bias)
         self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
-        self.rotor_pct = np.asarray(self.mixer.mix(*self.commands_pct))[: self._n_thrust]
+        self.rotor_pct = tuple(self.mixer.mix(*self.commands_pct)[: self._n_thrust])
         self.wind_world[:] = 0.0
         self._wind_v[:] = 0.0  # opt.wind lives in the model, which outlives a run
         for dist in self.disturbances:
@@ -321,8 +321,7 @@ class Simulator:
         :meth:`set_rotor_commands`."""
         mx = self.mixer
         extra = np.asarray(mx.mix(*commands_pct, clip=False))[: self._n_thrust]
-        self.rotor_pct = np.clip(self.rotor_pct + extra, mx.out_min, mx.out_max)
-        set_rotor_ctrl(self._ctrl_v, self.rotor_pct, self.vehicle, self.thrust_ids, self.spinup_ids)
+        self.set_rotor_commands(np.clip(np.add(self.rotor_pct, extra), mx.out_min, mx.out_max))
 
     # ------------------------------------------------------------------ stepping
     def tick(self, controls_only: bool = False) -> None:
