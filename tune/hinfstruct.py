@@ -822,6 +822,19 @@ def _min_norm_hull(G):
     return G @ _hull_weights(G)
 
 
+def _inv_bfgs_update(H, s, y, sy):
+    """BFGS update of the inverse-Hessian approximation ``H`` for the step ``s`` and gradient change ``y``
+    (``sy = s @ y > 0``, checked by the caller with its own curvature guard)."""
+    r = 1.0 / sy
+    Hy = H @ y
+    return H - r * (np.outer(s, Hy) + np.outer(Hy, s)) + (r * r * float(y @ Hy) + r) * np.outer(s, s)
+
+
+def _stalled(track, window, f, tol) -> bool:
+    """The merit ``f`` fell by no more than ``0.1 tol`` (relative) over the last ``window`` iterations."""
+    return len(track) > window and track[-window - 1] - f <= 0.1 * tol * max(abs(f), 1e-300)
+
+
 def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None):
     """BFGS on a nonsmooth, locally Lipschitz function with weak Wolfe steps (Lewis & Overton). Stops when
     ``f < target``, when the smallest vector in the convex hull of the gradients at the recent iterates
@@ -852,14 +865,12 @@ def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None):
             if not scaled:
                 H = (sy / float(y @ y)) * np.eye(n)
                 scaled = True
-            r = 1.0 / sy
-            Hy = H @ y
-            H = H - r * (np.outer(s, Hy) + np.outer(Hy, s)) + (r * r * float(y @ Hy) + r) * np.outer(s, s)
+            H = _inv_bfgs_update(H, s, y, sy)
         radius = 1e-4 * max(1.0, np.linalg.norm(x))
         near = [(xi, gi) for xi, gi in near if np.linalg.norm(xi - x) <= radius][-n:] + [(x, g)]
         if np.linalg.norm(_min_norm_hull(np.column_stack([gi for _, gi in near]))) <= tol * max(1.0, abs(f)):
             break
-        if len(track) > window and track[-window - 1] - f <= 0.1 * tol * max(abs(f), 1e-300):
+        if _stalled(track, window, f, tol):
             break
     return x, f, g
 
@@ -926,10 +937,8 @@ def _gradient_sampling(fg, x, f, g, *, rng, max_iter, tol, deadline, history, ra
             it += 1
             sy = float(s @ y)
             if sy > 1e-12 * np.linalg.norm(s) * np.linalg.norm(y):
-                r = 1.0 / sy
-                Hy = H @ y
-                H = H - r * (np.outer(s, Hy) + np.outer(Hy, s)) + (r * r * float(y @ Hy) + r) * np.outer(s, s)
-            if len(track) > window and track[-window - 1] - f <= 0.1 * tol * max(abs(f), 1e-300):
+                H = _inv_bfgs_update(H, s, y, sy)
+            if _stalled(track, window, f, tol):
                 break
     return x, f, g
 
