@@ -14,6 +14,7 @@ from .greybox import (
                       periodic_average,
                       simulate_closed_loop,
                       simulate_greybox,
+                      split_periods,
 )
 from .hinf_match import HinfMatchResult, butterworth_weight, hinf_match
 from .lms import LMS, kung, lms_batch
@@ -34,8 +35,8 @@ from .subspace import moesp, pbsid
 
 __all__ = ["BootstrapResult", "bootstrap", "select_order", "estimate_delay", "varx_input_impulse", "FRFEstimate",
            "etfe", "model_frf", "welch_frf", "GreyBoxModel", "GreyBoxResult", "Param", "oe_fit",
-           "oe_fit_closed_loop", "periodic_average", "simulate_closed_loop", "simulate_greybox", "HinfMatchResult",
-           "butterworth_weight", "hinf_match", "LMS", "kung", "lms_batch", "Log", "check_identifiable", "load_log",
-           "write_log", "simulate", "vaf", "IdentifiedModel", "load_model", "save_model", "chordal_distance",
+           "oe_fit_closed_loop", "periodic_average", "simulate_closed_loop", "simulate_greybox", "split_periods",
+           "HinfMatchResult", "butterworth_weight", "hinf_match", "LMS", "kung", "lms_batch", "Log", "check_identifiable",
+           "load_log", "write_log", "simulate", "vaf", "IdentifiedModel", "load_model", "save_model", "chordal_distance",
            "nugap", "stability_margin_bpc", "first_order_structure", "pitch_structure", "rate_tf_structure",
            "rigid_rig_structure", "tuhh_axis_structure", "moesp", "pbsid", "METHODS", "Method", "get_method"]

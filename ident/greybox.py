@@ -44,6 +44,7 @@ __all__ = [
     "periodic_average",
     "simulate_greybox",
     "simulate_closed_loop",
+    "split_periods",
 ]
 
 
@@ -666,8 +667,20 @@ def periodic_average(x, period: int, skip: int = 1):
     -------
     ndarray, (period,) + x.shape[1:]
     """
+    return split_periods(x, period, skip).mean(axis=0)
+
+
+def split_periods(x, period: int, skip: int = 1):
+    """The whole periods of ``x`` (samples along axis 0) after the first ``skip`` periods, one a row: the
+    replicates whose mean is :func:`periodic_average` (``oe_fit_closed_loop``'s ``replicates``).
+
+    Returns
+    -------
+    ndarray, (n, period) + x.shape[1:]
+        ``n`` the whole periods after the first ``skip``; a partial last period is dropped.
+    """
     x = np.asarray(x, dtype=float)
     n = x.shape[0] // period - skip
     if period < 1 or n < 1:
         raise ValueError(f"need at least {skip + 1} whole periods of {period} samples; got {x.shape[0]} samples")
-    return x[skip * period:(skip + n) * period].reshape((n, period) + x.shape[1:]).mean(axis=0)
+    return x[skip * period:(skip + n) * period].reshape((n, period) + x.shape[1:])

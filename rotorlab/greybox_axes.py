@@ -24,7 +24,7 @@ import control as ct
 import mujoco
 import numpy as np
 
-from rotorlab.ident import oe_fit_closed_loop, periodic_average
+from rotorlab.ident import oe_fit_closed_loop, split_periods
 from rotorlab.ident.structures import tuhh_axis_structure
 from rotorlab.scenes import build_scene
 from rotorlab.sim.disturbances.input_disturbance_step import axis_torque_per_pct
@@ -68,8 +68,6 @@ def physical(vehicle, axis: str) -> dict:
     """The twin's own parameters: ``J`` (kg m^2, about the axis in its experiment's scene, from MuJoCo's mass
     matrix), ``p`` (1/s, the rotors' motor pole ``1/lag``), ``Td`` (s, the rotors' transport delay), yaw ``z``
     (``q / J_R``, 1/s)."""
-
-
     sc = build_scene(SCENE[axis], vehicle)
     m = sc.model
     d = mujoco.MjData(m)
@@ -126,8 +124,6 @@ def small_signal_truth(vehicle, axis: str, options: dict | None = None) -> dict:
     step, command held over the flight-software period, IMU sampled at the tick) under the experiment's PD and
     PRBS, computed at the PRBS period's harmonics. It leaves out the large-signal effects (speed-map curvature,
     the free-flight couplings) the flown experiment has."""
-
-
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
     options = dict(options or {})
     dt = v.control_dt_s
@@ -147,10 +143,8 @@ def small_signal_truth(vehicle, axis: str, options: dict | None = None) -> dict:
         # u = kp (r - angle) - kd rate
         Y[k] = np.linalg.solve(np.eye(2) + Gz @ np.array([[kp, kd]]), Gz[:, 0] * kp * R[k])
     y = np.fft.irfft(Y, n=n, axis=0)
-    pd = prbs_periodic.pd_controller(axis, kp, kd, dt)
     ph = physical(v, axis)
-    res = oe_fit_closed_loop(structure(v, axis), ct.ss([], [], [], pd.D, dt), r, y, dt, feedback_output=(0, 1),
-                             periods=2, theta0=ph, reweight=False)
+    res = _fit_period(v, axis, kp, kd, r, y, dt, theta0=ph)
     return {**ph, **{k: float(res.params[k]) for k in res.free}}
 
 
@@ -158,6 +152,17 @@ def structure(vehicle, axis: str):
     """TUHH axis structure on ``[angle (deg), rate (deg/s)]`` from the axis command (%), ``K`` fixed a priori."""
     start = {k: v for k, v in START.items() if axis == "yaw" or k != "z"}
     return tuhh_axis_structure(axis, outputs=("angle", "rate"), K=apriori_gain(vehicle, axis), **start)
+
+
+def _fit_period(v, axis: str, kp: float, kd: float, r, y, dt: float, **kw):
+    """The indirect closed-loop fit of one period of the experiment's periodic steady state (``r`` the set-point,
+    ``y`` [angle, rate]) through its PD (``kp`` %/deg, ``kd`` %/(deg/s)): the one fit the flown experiment and
+    :func:`small_signal_truth` share. ``kw`` goes to :func:`rotorlab.ident.oe_fit_closed_loop`."""
+    pd = prbs_periodic.pd_controller(axis, kp, kd, dt)
+    # fixed signal weights on angle and rate, not the residual-based ML ones: with the structure's misfit those
+    # would move the estimate's limit with the noise level, and the truth is the noise-free limit
+    return oe_fit_closed_loop(structure(v, axis), ct.ss([], [], [], pd.D, dt), r, y, dt, feedback_output=(0, 1),
+                              periods=2, reweight=False, **kw)
 
 
 class _Fit:
@@ -169,8 +174,6 @@ class _Fit:
 
 def _fit_experiment(v, axis: str, seed: int, periods: int, restarts: int, options: dict, sensor_noise: bool = True,
                     theta0=None):
-
-
     dt = v.control_dt_s
     _, n = prbs_periodic.sequence(options, dt)
     run = run_scenario("prbs-periodic", v, scene=SCENE[axis], seed=seed, duration_s=periods * n * dt,
@@ -180,18 +183,15 @@ def _fit_experiment(v, axis: str, seed: int, periods: int, restarts: int, option
     notes = run.info["notes"]
     ref, ang, rate = COLUMNS[axis]
     data = np.column_stack([run.log[ref], run.log[ang], run.log[rate]])
-    avg = periodic_average(data, n, skip=1)
-    pd = prbs_periodic.pd_controller(axis, notes["kp"], notes["kd"], dt)
-    K = ct.ss([], [], [], pd.D, dt)
+    reps = split_periods(data, n, skip=1)
+    avg = reps.mean(axis=0)
     kw = {}
     if sensor_noise:
         # the interval from the period-to-period spread (ref. 002's ten periods as replicates): honest for the
         # coloured closed-loop noise, blind to the structure's misfit, which :func:`truth` accounts for instead
-        kw = {"cov": "periods", "replicates": data[n:n * (data.shape[0] // n)].reshape(-1, n, 3)[:, :, 1:]}
-    # fixed signal weights on angle and rate, not the residual-based ML ones: with the structure's misfit those
-    # would move the estimate's limit with the noise level, and the truth is the noise-free limit
-    res = oe_fit_closed_loop(structure(v, axis), K, avg[:, 0], avg[:, 1:], dt, theta0=theta0, feedback_output=(0, 1),
-                             periods=2, restarts=restarts, rng=seed, reweight=False, **kw)
+        kw = {"cov": "periods", "replicates": reps[:, :, 1:]}
+    res = _fit_period(v, axis, notes["kp"], notes["kd"], avg[:, 0], avg[:, 1:], dt, theta0=theta0, restarts=restarts,
+                      rng=seed, **kw)
     return _Fit(res, notes, n, dt)
 
 

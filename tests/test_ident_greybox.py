@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.signal import max_len_seq
 
-from rotorlab.ident import periodic_average
+from rotorlab.ident import periodic_average, split_periods
 from rotorlab.ident.greybox import GreyBoxModel, Param, oe_fit, oe_fit_closed_loop, simulate_greybox
 from rotorlab.ident.structures import (
     pitch_structure,
@@ -201,6 +201,8 @@ def test_periodic_closed_loop_fit_with_pd_on_angle_and_rate():
             assert res.params[name] == pytest.approx(tv[name], rel=0.05), res.summary()
         covered += sum(res.covers(tv).values())
     assert covered >= 6  # of 9 intervals
+    # the replicates are the whole periods after the skipped ones, a partial last period dropped
+    np.testing.assert_array_equal(split_periods(np.arange(11.0), 3, skip=1), [[3, 4, 5], [6, 7, 8]])
     with pytest.raises(ValueError, match="whole periods"):
         periodic_average(np.zeros(10), 6, skip=1)
     with pytest.raises(ValueError, match="initial state"):
@@ -231,7 +233,7 @@ def test_period_to_period_interval_matches_the_spread_over_seeds():
             y = Cm @ x + bias + rng.standard_normal(2) * (0.05, 0.5)
             x = A @ x + B[:, 0] * (kp * (r1[k % n] - y[0]) - kd * y[1])
             Y[k] = y
-        reps = Y[n:].reshape(periods - 1, n, 2)
+        reps = split_periods(Y, n, skip=1)
         res = oe_fit_closed_loop(truth.with_values(tv), ctl, r1, reps.mean(axis=0), dt, feedback_output=(0, 1),
                                  periods=2, cov="periods", replicates=reps, reweight=False)
         est.append([res.params[k] for k in ("J", "p", "Td")])
@@ -248,7 +250,7 @@ def test_period_to_period_interval_matches_the_spread_over_seeds():
         y = (Cm @ x) * (1.0, 1.1)
         x = A @ x + B[:, 0] * (kp * (r1[k % n] - y[0]) - kd * y[1])
         Yn[k] = y
-    reps = Yn[10 * n:].reshape(10, n, 2)  # the start-up transient long gone
+    reps = split_periods(Yn, n, skip=10)  # the start-up transient long gone
     kw = dict(feedback_output=(0, 1), periods=2, theta0=tv, reweight=False)
     misfit = oe_fit_closed_loop(truth, ctl, r1, reps.mean(axis=0), dt, cov="periods", replicates=reps, **kw)
     hac = oe_fit_closed_loop(truth, ctl, r1, reps.mean(axis=0), dt, **kw)
