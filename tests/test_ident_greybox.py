@@ -131,6 +131,35 @@ def _pd_loop(P, C, r, v):
     return Y
 
 
+def _periodic_pd_setup(bits_log2):
+    """Ref. 002's periodic experiment on the TUHH pitch structure: PD on angle and rate (``kp`` % per deg, ``kd``
+    % per deg/s), a priori ``K`` (deg per % of command), a full-length PRBS of 2^bits_log2 - 1 bits of 40 ms, +-3
+    deg. Returns ``(truth, dt, kp, kd, r1, ctl)``, ``ctl`` the PD on ``[r, angle, rate]``."""
+    dt, kp, kd = 0.004, 0.6, 0.14
+    truth = tuhh_axis_structure("pitch", outputs=("angle", "rate"), K=0.01942 * 180 / np.pi)
+    r1 = np.repeat(max_len_seq(bits_log2)[0] * 2.0 - 1.0, 10) * 3.0
+    return truth, dt, kp, kd, r1, ct.ss([], [], [], [[kp, -kp, -kd]], dt)
+
+
+def _imu(rng, bias):
+    """What the PD reads on a real IMU: [angle, rate] plus a gyro bias and white noise (0.05 deg, 0.5 deg/s)."""
+    return lambda y: y + bias + rng.standard_normal(2) * (0.05, 0.5)
+
+
+def _periodic_pd_loop(P, kp, kd, r1, periods, measure):
+    """The PD loop on angle and rate written out sample by sample over ``periods`` repetitions of ``r1``:
+    ``measure`` maps the plant's [angle, rate] to what the PD reads and the log keeps (noise, bias, a bad gyro)."""
+    A, B, Cm = (np.asarray(M, float) for M in (P.A, P.B, P.C))
+    n = r1.size
+    x = np.zeros(A.shape[0])
+    Y = np.empty((n * periods, 2))
+    for k in range(n * periods):
+        y = measure(Cm @ x)
+        x = A @ x + B[:, 0] * (kp * (r1[k % n] - y[0]) - kd * y[1])
+        Y[k] = y
+    return Y
+
+
 def test_oe_fit_closed_loop_tuhh_pitch_with_pd_controller():
     dt, N = 0.005, 2500
     truth = tuhh_axis_structure("pitch")
@@ -174,29 +203,18 @@ def test_periodic_closed_loop_fit_with_pd_on_angle_and_rate():
     # periods after the first, one periodic steady-state period fitted (means removed: a constant bias is
     # no part of the structure). Noise enters the feedback as on a real IMU.
 
-    dt, kp, kd = 0.004, 0.6, 0.14  # % per deg, % per deg/s
-    K = 0.01942 * 180 / np.pi  # deg per % of command, a priori
-    truth = tuhh_axis_structure("pitch", outputs=("angle", "rate"), K=K)
+    truth, dt, kp, kd, r1, ctl = _periodic_pd_setup(6)  # 63 bits
     tv = truth.values()
     P = truth.discretize(dt)
-    A, B, Cm = (np.asarray(M, float) for M in (P.A, P.B, P.C))
-    r1 = np.repeat(max_len_seq(6)[0] * 2.0 - 1.0, 10) * 3.0  # 63 bits of 40 ms, +-3 deg
-    n, periods = r1.size, 11
-    ctl = ct.ss([], [], [], [[kp, -kp, -kd]], dt)
+    n = r1.size
     covered = 0
     for seed in range(3):
         rng = np.random.default_rng(seed)
-        x = np.zeros(A.shape[0])
         bias = np.array([0.0, 0.3])  # a turn-on gyro bias
-        Y = np.empty((n * periods, 2))
-        for k in range(n * periods):
-            y = Cm @ x + bias + rng.standard_normal(2) * (0.05, 0.5)
-            u = kp * (r1[k % n] - y[0]) - kd * y[1]
-            x = A @ x + B[:, 0] * u
-            Y[k] = y
+        Y = _periodic_pd_loop(P, kp, kd, r1, 11, _imu(rng, bias))
         avg = periodic_average(Y, n, skip=1)
-        res = oe_fit_closed_loop(tuhh_axis_structure("pitch", outputs=("angle", "rate"), K=K, J=0.01, p=15.0, Td=0.01),
-                                 ctl, r1, avg, dt, feedback_output=(0, 1), periods=2)
+        res = oe_fit_closed_loop(truth.replace(J=0.01, p=15.0, Td=0.01), ctl, r1, avg, dt, feedback_output=(0, 1),
+                                 periods=2)
         for name in ("J", "p", "Td"):
             assert res.params[name] == pytest.approx(tv[name], rel=0.05), res.summary()
         covered += sum(res.covers(tv).values())
@@ -214,25 +232,15 @@ def test_period_to_period_interval_matches_the_spread_over_seeds():
     # spread matches the estimates' spread over independent experiments (coloured closed-loop noise, gyro bias)
     # and the intervals cover the truth at about their level; a structure's misfit, common to every period,
     # does not enter it
-    dt, kp, kd = 0.004, 0.6, 0.14
-    K = 0.01942 * 180 / np.pi
-    truth = tuhh_axis_structure("pitch", outputs=("angle", "rate"), K=K)
+    truth, dt, kp, kd, r1, ctl = _periodic_pd_setup(5)
     tv = truth.values()
     P = truth.discretize(dt)
-    A, B, Cm = (np.asarray(M, float) for M in (P.A, P.B, P.C))
-    r1 = np.repeat(max_len_seq(5)[0] * 2.0 - 1.0, 10) * 3.0
-    n, periods = r1.size, 11
-    ctl = ct.ss([], [], [], [[kp, -kp, -kd]], dt)
+    n = r1.size
     est, std, covered = [], [], 0
     for seed in range(12):
         rng = np.random.default_rng(seed)
-        x = np.zeros(A.shape[0])
         bias = np.array([0.0, rng.normal(0.0, 0.3)])
-        Y = np.empty((n * periods, 2))
-        for k in range(n * periods):
-            y = Cm @ x + bias + rng.standard_normal(2) * (0.05, 0.5)
-            x = A @ x + B[:, 0] * (kp * (r1[k % n] - y[0]) - kd * y[1])
-            Y[k] = y
+        Y = _periodic_pd_loop(P, kp, kd, r1, 11, _imu(rng, bias))
         reps = split_periods(Y, n, skip=1)
         res = oe_fit_closed_loop(truth.with_values(tv), ctl, r1, reps.mean(axis=0), dt, feedback_output=(0, 1),
                                  periods=2, cov="periods", replicates=reps, reweight=False)
@@ -244,12 +252,7 @@ def test_period_to_period_interval_matches_the_spread_over_seeds():
     assert covered >= 30  # of 36 intervals (nominal 34)
     # noise-free periods of data the structure cannot fit (a gyro reading 10 % high): the residual-based interval
     # counts the misfit as noise, the period-to-period one has no spread to count
-    Yn = np.empty((n * 20, 2))
-    x = np.zeros(A.shape[0])
-    for k in range(n * 20):
-        y = (Cm @ x) * (1.0, 1.1)
-        x = A @ x + B[:, 0] * (kp * (r1[k % n] - y[0]) - kd * y[1])
-        Yn[k] = y
+    Yn = _periodic_pd_loop(P, kp, kd, r1, 20, lambda y: y * (1.0, 1.1))
     reps = split_periods(Yn, n, skip=10)  # the start-up transient long gone
     kw = dict(feedback_output=(0, 1), periods=2, theta0=tv, reweight=False)
     misfit = oe_fit_closed_loop(truth, ctl, r1, reps.mean(axis=0), dt, cov="periods", replicates=reps, **kw)
