@@ -3,29 +3,17 @@ faster than the standard set with a response time no slower, drift less in a gus
 optimum), overshoot less and recover faster after the rope release, and lower the high-frequency command after
 the in-flight switch."""
 
-import json
-
-import numpy as np
 import pytest
-
-from rotorlab.pipeline import PipelineOptions, run_pipeline, stage_dir
+from helpers import claim_metrics
 
 
 @pytest.fixture(scope="module")
-def summary(tmp_path_factory):
-    out = tmp_path_factory.mktemp("a2") / "run"
-    run_pipeline(PipelineOptions(vehicle="anteos-a2minib", out=out, level="quick", seed=0, executor="local",
-                                 workers=2, progress=False), log=lambda *_: None)
-    return json.loads((stage_dir(out, "report") / "summary.json").read_text())
+def summary(quick_summary):
+    return quick_summary("anteos-a2minib")
 
 
 def test_a2minib_claims_hold_on_the_twin(summary):
-    v = summary["validation"]
-
-    def m(sc, key, name):
-        x = v[sc][name].get(key)
-        return np.inf if x is None else abs(x)
-
+    v, m = summary["validation"], claim_metrics(summary)
     assert summary["tuning"]["hard_failed"] == []
     lin = "linear_step."
     assert m("setpoint", lin + "settling_time_s", "tuned") < m("setpoint", lin + "settling_time_s", "standard")

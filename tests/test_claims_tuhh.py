@@ -5,22 +5,15 @@ for both designs, the saturating 30 % disturbance diverges the plain H-inf loop 
 J, p, Td within 10 % (roll, pitch) / 20 % (yaw) of the twin's own values, the 95 % intervals holding the
 structure's pseudo-true values."""
 
-import json
-
 import pytest
-
-from rotorlab.pipeline import PipelineOptions, run_pipeline, stage_dir
 
 DESIGNS = ("modified-pid", "hinf-loopshaping", "hinf-loopshaping-aw")
 AXES2 = ("roll", "pitch")
 
 
 @pytest.fixture(scope="module")
-def summary(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tuhh") / "run"
-    run_pipeline(PipelineOptions(vehicle="tuhh-quad", out=out, level="quick", seed=0, executor="local", workers=2,
-                                 progress=False), log=lambda *_: None)
-    return json.loads((stage_dir(out, "report") / "summary.json").read_text())
+def summary(quick_summary):
+    return quick_summary("tuhh-quad")
 
 
 def test_summary_keys_of_the_design_experiments_and_the_greybox_axes(summary):

@@ -5,10 +5,11 @@ import math
 import control as ct
 import numpy as np
 import pytest
+from helpers import p2a2_testbed_angle_rate
 
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import AxisGains, GainSet, LoopGains
-from rotorlab.lti import c2d_zoh, delay_ss, pid2_ss
+from rotorlab.lti import delay_ss, pid2_ss
 from rotorlab.sim.control import (
     AttitudeController,
     CallbackPlugin,
@@ -36,19 +37,9 @@ def _gs(name, ax):
     return GainSet(name, {"pitch": ax, "roll": ax})
 
 
-def _p2a2_plant():
-    """P2-A2 test-bed pitch model (reference 000) u(%) -> [theta (deg), q (deg/s)], ZOH at 50 Hz, with the
-    3-sample input delay as a shift register handled by the caller."""
-    G = ct.tf2ss(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]))
-    A = np.block([[G.A, np.zeros((2, 1))], [G.C, np.zeros((1, 1))]])
-    B = np.vstack([G.B, G.D])
-    C = np.vstack([np.hstack([np.zeros((1, 2)), np.ones((1, 1))]), np.hstack([G.C, np.zeros((1, 1))])])
-    return c2d_zoh(ct.ss(A, B, C, np.zeros((2, 1))), DT)
-
-
 class _Plant:
     def __init__(self):
-        P = _p2a2_plant()
+        P = p2a2_testbed_angle_rate(DT)  # the 3-sample input delay: the shift register below
         self.A, self.B, self.C = (np.asarray(M) for M in (P.A, P.B, P.C))
         self.x = np.zeros(3)
         self.buf = [0.0, 0.0, 0.0]
@@ -104,7 +95,7 @@ def _closed_loop_step(gains: AxisGains, n=150, amp=10.0, **limits):
 
 def _linear_closed_loop(gains: AxisGains, n=150, amp=10.0):
     """Same loop as a linear interconnection (python-control), valid while nothing saturates."""
-    P = ct.series(delay_ss(3, DT), _p2a2_plant())
+    P = ct.series(delay_ss(3, DT), p2a2_testbed_angle_rate(DT))
     P = ct.ss(P.A, P.B, P.C, P.D, DT, inputs=["u"], outputs=["theta", "q"])
     o, i = gains.outer, gains.inner
     Co = ct.ss(pid2_ss(o.kp, o.ki, o.kd, o.tf, o.b, o.c, DT), inputs=["r", "theta"], outputs=["q_ref"])

@@ -1,31 +1,21 @@
 """Supervisor: keeps the P2-A2 test-bed model within +-20 deg under the published PRBS campaigns, silent
 while the attitude is small."""
 
-import control as ct
 import numpy as np
 import pytest
+from helpers import p2a2_testbed_angle_rate
 
 from rotorlab.errors import ConfigError
 from rotorlab.excitation import prbs
-from rotorlab.lti import c2d_zoh
 from rotorlab.sim.control.supervisor import Supervisor
 
 DT = 0.02
 
 
-def _plant():
-    """q/u = 12.517 (s + 2.906) / (s^2 + 5.583 s + 21.3) (reference 000, test-bed PBSID), integrated to the
-    angle; outputs [theta deg, q deg/s], ZOH at 50 Hz; the 3-sample delay is applied by the caller."""
-    G = ct.tf2ss(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]))
-    A = np.block([[G.A, np.zeros((2, 1))], [G.C, np.zeros((1, 1))]])
-    B = np.vstack([G.B, G.D])
-    C = np.vstack([np.hstack([np.zeros((1, 2)), np.ones((1, 1))]), np.hstack([G.C, np.zeros((1, 1))])])
-    P = c2d_zoh(ct.ss(A, B, C, np.zeros((2, 1))), DT)
-    return (np.asarray(M) for M in (P.A, P.B[:, 0], P.C))
-
-
 def _simulate(u_exc, supervisor):
-    A, B, C = (M.tolist() for M in _plant())
+    # the test-bed model with its 3-sample delay applied below
+    P = p2a2_testbed_angle_rate(DT)
+    A, B, C = (np.asarray(M).tolist() for M in (P.A, P.B[:, 0], P.C))
     (a00, a01, a02), (a10, a11, a12), (a20, a21, a22) = A
     b0, b1, b2 = B
     (c00, c01, c02), (c10, c11, c12) = C

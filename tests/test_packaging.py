@@ -2,7 +2,6 @@
 walking the mapped folders for __init__.py files), so nothing that works under `pip install -e` is left out of
 the wheel. The wheel itself is built and listed by .ci/check_wheel.py in CI."""
 
-import importlib.util
 import os
 import tomllib
 from pathlib import Path
@@ -10,14 +9,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _discover():
-    spec = importlib.util.spec_from_file_location("rotorlab_setup", ROOT / "setup.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)  # not __main__: setup() is not called
-    return mod.discover(ROOT)
-
-
-def test_discovery_finds_every_package_of_the_tree():
+def test_discovery_finds_every_package_of_the_tree(repo_module):
     mapping = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
     walked = set()
     for name, folder in mapping.items():
@@ -26,7 +18,7 @@ def test_discovery_finds_every_package_of_the_tree():
             if "__init__.py" in filenames:
                 rel = Path(dirpath).relative_to(ROOT / folder).parts
                 walked.add(".".join((name, *rel)))
-    found = set(_discover())
+    found = set(repo_module("setup.py").discover(ROOT))  # not run as __main__: setup() is not called
     assert found == walked
     assert {"rotorlab.pipeline.stages", "rotorlab.sim.scenarios", "rotorlab.tune"} <= found
 

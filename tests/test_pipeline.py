@@ -8,6 +8,7 @@ import shutil
 
 import numpy as np
 import pytest
+from helpers import claim_metrics
 
 from rotorlab import pipeline
 from rotorlab.errors import UnknownNameError
@@ -19,12 +20,8 @@ LEVEL = "quick"  # what `rotorlab pipeline --quick` runs
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("pl") / "run"
-    lines = []
-    run_pipeline(PipelineOptions(vehicle="anteos-p2a2", out=out, level=LEVEL, seed=3, executor="local", workers=2,
-                                 progress=False), log=lines.append)
-    return out, lines
+def run(quick_run):
+    return quick_run("anteos-p2a2", seed=3)
 
 
 def _summary(out):
@@ -475,17 +472,12 @@ def test_report_tables_are_well_formed_and_lead_with_the_key_metrics(run):
         assert cells(rows[0])[1:] == [f" {fmt(lookup(s['validation'][sc][n], keys[sc]))} " for n in sets]
 
 
-def test_readme_headline_is_the_seeded_quick_run(run):
+def test_readme_headline_is_the_seeded_quick_run(run, repo_module):
     """README.md's headline block is this run's report headline, number for number (docs/readme_numbers.py
     writes it from the same seeded quick run; after a change that moves the numbers, run that script)."""
-    import importlib.util
-    from pathlib import Path
-
-    spec = importlib.util.spec_from_file_location("readme_numbers",
-                                                  Path(__file__).parents[1] / "docs" / "readme_numbers.py")
-    rn = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(rn)
-    assert rn.RUN == {"vehicle": "anteos-p2a2", "level": LEVEL, "seed": 3, "executor": "local", "workers": 2}
+    rn = repo_module("docs/readme_numbers.py")
+    m = RunFolder(run[0]).manifest()  # the script's run is this one (quick_run: local executor, 2 workers)
+    assert rn.RUN == {"vehicle": m["vehicle"], "level": m["level"], "seed": m["seed"], "executor": "local", "workers": 2}
     md = (stage_dir(run[0], "report") / "report.md").read_text()
     readme = rn.readme_block(rn.README.read_text(encoding="utf-8"))
     assert readme == rn.block(md), "README.md's headline is stale: run python docs/readme_numbers.py"
@@ -497,22 +489,11 @@ def test_readme_headline_is_the_seeded_quick_run(run):
     assert all(f"{s['h_lim'][k]:.3f}" in readme for k in header[1:5])
 
 
-def _claim_metrics(s):
-    """``m(scenario, metric, set)``: the metric's magnitude, infinite where it is missing (never settled)."""
-    v = s["validation"]
-
-    def m(sc, key, name):
-        x = v[sc][name].get(key)
-        return np.inf if x is None else abs(x)
-
-    return m
-
-
 def test_tuned_gains_reproduce_ref000_claims_p2a2(run):
     """Ref. 000: optimal tuning reduces the angular drift in a gust and the control effort with similar or
     better tracking; on the twin the tuned set does so at least as well as the published optimum (5 %)."""
     s = _summary(run[0])
-    m = _claim_metrics(s)
+    m = claim_metrics(s)
     assert s["tuning"]["hard_failed"] == []
     for key in ("pitch.disturbance.peak_deviation", "pitch.disturbance.iae"):
         assert m("gust", key, "tuned") < m("gust", key, "standard"), key

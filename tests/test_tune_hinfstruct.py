@@ -250,20 +250,9 @@ def test_gradient_sampling_reaches_the_minimum_of_a_max_function():
     assert all(b <= a for a, b in zip(hist, hist[1:]))
 
 
-def _compleib():
-    """benchmarks/compleib.py: the COMPleib matrices, published values and independent check, one source of truth."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "compleib.py"
-    spec = importlib.util.spec_from_file_location("compleib_bench", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_compleib_ac15_within_two_percent_of_the_published_static_optimum():
-    cl = _compleib()
+def test_compleib_ac15_within_two_percent_of_the_published_static_optimum(repo_module):
+    # benchmarks/compleib.py: the COMPleib matrices, published values and independent check, one source of truth
+    cl = repo_module("benchmarks/compleib.py")
     P, ny, nu = cl.plant(cl.AC15)
     r = hinfstruct(P, "static", ny, nu, starts=1)
     best = min(v for _, v in cl.PUBLISHED["AC15"])  # hinfstruct's 15.2 (Guo et al. 2023 baselines)
