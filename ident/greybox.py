@@ -176,6 +176,16 @@ class GreyBoxModel:
             th.update({k: float(v) for k, v in theta.items()})
         return th
 
+    def scaled(self, theta0: Mapping[str, float] | None = None) -> ScaledParams:
+        """The free parameters as an optimiser searches them: in units of their start values (``theta0`` over
+        the parameter values, clipped to the bounds), so the trust region and finite differences see comparable
+        steps whether a parameter is 1e-3 kg m^2 or 1e3 N m/rad."""
+        free, base = self.free, self._theta(theta0)
+        lo = np.array([self.param(n).lower for n in free])
+        hi = np.array([self.param(n).upper for n in free])
+        x_init = np.clip(np.array([base[n] for n in free]), lo, hi)
+        return ScaledParams(free, base, lo, hi, x_init, np.where(np.abs(x_init) > 0, np.abs(x_init), 1.0))
+
     def ss(self, theta: Mapping[str, float] | None = None) -> ct.StateSpace:
         """Continuous delay-free state-space model at ``theta`` (default: the parameter values)."""
         sys = as_ss(self.build(self._theta(theta)))
@@ -195,6 +205,26 @@ class GreyBoxModel:
     def __repr__(self) -> str:
         ps = ", ".join(f"{p.name}={p.value:g}{' (fixed)' if p.fixed else ''}" for p in self.params)
         return f"GreyBoxModel({self.name!r}: {ps}; delay={self.delay!r})"
+
+
+@dataclass(frozen=True)
+class ScaledParams:
+    """:meth:`GreyBoxModel.scaled`: the free parameters' names, the full parameter values the search starts
+    from (``base``), the bounds (``lo``, ``hi``), the start (``x_init``) and the scale, in the free parameters'
+    units; ``z = x / scale`` is what the optimiser moves."""
+
+    free: list[str]
+    base: dict[str, float]
+    lo: np.ndarray
+    hi: np.ndarray
+    x_init: np.ndarray
+    scale: np.ndarray
+
+    def theta(self, z) -> dict[str, float]:
+        """Every parameter's value at the scaled free parameters ``z``."""
+        th = dict(self.base)
+        th.update(zip(self.free, z * self.scale))
+        return th
 
 
 @dataclass
@@ -442,23 +472,12 @@ def _covariance(Jm, r, N, p, dof, method, name, free, rep_dev=None) -> np.ndarra
 def _fit(model: GreyBoxModel, y: np.ndarray, dt: float, simulate, theta0, estimate_x0: bool, nx: int,
          restarts: int, rng, max_nfev, progress: bool, cov_method: str, replicates=None,
          reweight: bool = True) -> GreyBoxResult:
-    free = model.free
-    if not free:
+    if not model.free:
         raise ValueError(f"grey-box model '{model.name}': every parameter is fixed, nothing to estimate")
-    base = model._theta(theta0)
-    lo = np.array([model.param(n).lower for n in free])
-    hi = np.array([model.param(n).upper for n in free])
-    x_init = np.clip(np.array([base[n] for n in free]), lo, hi)
-    # work in parameters scaled to order one so the trust region and finite differences see
-    # comparable steps whether a parameter is 1e-3 kg m^2 or 1e3 N m/rad
-    scale = np.where(np.abs(x_init) > 0, np.abs(x_init), 1.0)
+    sp = model.scaled(theta0)
+    free, lo, hi, x_init, scale, theta_of = sp.free, sp.lo, sp.hi, sp.x_init, sp.scale, sp.theta
     N, p = y.shape
     w = np.ones(p)  # per-output weights, 1/sigma_j (re-estimated for several outputs: ML with unknown variances)
-
-    def theta_of(z):
-        th = dict(base)
-        th.update(zip(free, z * scale))
-        return th
 
     def residual(z, want_x0=False):
         th = theta_of(z)

@@ -156,18 +156,8 @@ def hinf_match(black_box, structure: GreyBoxModel, weight=None, theta0: Mapping[
             top = min(top, np.pi / float(getattr(black_box, "sys", black_box).dt))
         omega = np.logspace(-2, np.log10(top), 400)
     omega = np.sort(np.asarray(omega, dtype=float))
-    free = structure.free
-    base = structure._theta(theta0)
-    lo = np.array([structure.param(n).lower for n in free])
-    hi = np.array([structure.param(n).upper for n in free])
-    x_init = np.clip(np.array([base[n] for n in free]), lo, hi)
-    scale = np.where(np.abs(x_init) > 0, np.abs(x_init), 1.0)
-
-    def theta_of(z):
-        th = dict(base)
-        th.update(zip(free, z * scale))
-        return th
-
+    sp = structure.scaled(theta0)
+    lo, hi, x_init, scale, theta_of = sp.lo, sp.hi, sp.x_init, sp.scale, sp.theta
     cache = {}
 
     def fixed_part(w):
