@@ -20,10 +20,13 @@ def p2a2_testbed_angle_rate(dt: float) -> ct.StateSpace:
 
 def claim_metrics(summary: dict):
     """``m(scenario, metric, set)``: the metric's magnitude in a pipeline summary, infinite where the set has
-    none (never settled, never recovered: the summary leaves it out or stores None)."""
+    none (never settled, never recovered: the summary leaves it out or stores None). A metric that no gain set
+    of the scenario has is a KeyError, so a misspelt key cannot pass as infinity against infinity."""
     v = summary["validation"]
 
     def m(sc, key, name):
+        if not any(key in r for r in v[sc].values()):
+            raise KeyError(f"no gain set of {sc!r} has the metric {key!r}")
         x = v[sc][name].get(key)
         return np.inf if x is None else abs(x)
 
