@@ -25,6 +25,7 @@ import scipy.optimize as opt
 import scipy.signal as sig
 from tqdm.auto import tqdm
 
+from rotorlab.ident.freqresp import model_frf
 from rotorlab.ident.greybox import GreyBoxModel
 from rotorlab.lti import as_ss, d2c_zoh, freqresp, hinfnorm, is_discrete
 
@@ -102,16 +103,6 @@ def _black_box_ct(black_box, delay_s):
     return (d2c_zoh(sysd) if is_discrete(sysd) else sysd), float(delay_s or 0.0)
 
 
-def _freqresp_small(sys: ct.StateSpace, w: np.ndarray) -> np.ndarray:
-    """SISO continuous response at ``j w`` by one batched solve: the structures have a handful of states
-    and this runs inside the optimiser, where a per-frequency Python loop would dominate the run time."""
-    A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
-    n = A.shape[0]
-    M = 1j * w[:, None, None] * np.eye(n)[None] - A[None]
-    x = np.linalg.solve(M, np.broadcast_to(B[:, :1].astype(complex), (w.size, n, 1)))
-    return (C[:1] @ x)[:, 0, 0] + D[0, 0]
-
-
 def _minimal(sys: ct.StateSpace) -> ct.StateSpace:
     # structures may carry unobservable modes (the pitch structure's common-mode angle at s = 0) that the
     # exact norm of a stable error system must not see
@@ -173,7 +164,9 @@ def hinf_match(black_box, structure: GreyBoxModel, weight=None, theta0: Mapping[
         except (ValueError, np.linalg.LinAlgError):
             return np.full((w.size,), 1e6, dtype=complex)
         Fw, Fns = fixed_part(w)
-        return Fw * (Fns - _freqresp_small(Gs, w))
+        # one batched solve (model_frf), not lti.freqresp's loop over frequencies: the structures have a handful
+        # of states and this runs inside the optimiser, where a per-frequency Python loop would dominate
+        return Fw * (Fns - model_frf(Gs, w)[:, 0, 0])
 
     def exact(z):
         E = ct.series(ct.parallel(Gns, -_minimal(structure.ss(theta_of(z)))), W)
