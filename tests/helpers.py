@@ -1,5 +1,10 @@
 """Plain helpers shared by test modules (fixtures live in conftest.py): a ground-truth plant written out
-independently of the library, and a reader of a pipeline summary's claim metrics."""
+independently of the library, a reader of a pipeline summary's claim metrics and the walk of a one-file-per-class
+registry package."""
+
+import importlib
+import pkgutil
+import re
 
 import control as ct
 import numpy as np
@@ -31,3 +36,19 @@ def claim_metrics(summary: dict):
         return np.inf if x is None else abs(x)
 
     return m
+
+
+def classes_defined_in(pkg, base: type) -> list[tuple[str, type]]:
+    """``(module file name, class)`` for every subclass of ``base`` defined (not only imported) in a module of
+    package ``pkg``: what a registry's one-file-per-class rule is checked against."""
+    found = []
+    for info in pkgutil.iter_modules(pkg.__path__):
+        mod = importlib.import_module(f"{pkg.__name__}.{info.name}")
+        found += [(info.name, obj) for obj in vars(mod).values()
+                  if isinstance(obj, type) and issubclass(obj, base) and obj is not base and obj.__module__ == mod.__name__]
+    return found
+
+
+def snake_case(class_name: str) -> str:
+    """``InputDisturbanceStep`` -> ``input_disturbance_step``: the file name a registered class lives in."""
+    return re.sub(r"(?<!^)(?=[A-Z])", "_", class_name).lower()

@@ -1,11 +1,8 @@
 """Disturbances acting through the physics, with their logged ground truth."""
 
-import importlib
-import pkgutil
-import re
-
 import numpy as np
 import pytest
+from helpers import classes_defined_in, snake_case
 
 import rotorlab.sim.disturbances as pkg
 from rotorlab.errors import ConfigError
@@ -123,20 +120,13 @@ _EXAMPLES = {
 }
 
 
-def _snake(name: str) -> str:
-    return re.sub(r"(?<!^)(?=[A-Z])", "_", name).lower()
-
-
 def test_registry_holds_every_disturbance_in_a_file_named_after_it():
     defined = set()
-    for info in pkgutil.iter_modules(pkg.__path__):
-        mod = importlib.import_module(f"{pkg.__name__}.{info.name}")
-        for obj in vars(mod).values():
-            # concrete disturbances: the ones with a name of their own (the base classes keep the default one)
-            if (isinstance(obj, type) and issubclass(obj, Disturbance) and obj.__module__ == mod.__name__
-                    and obj is not Disturbance and "name" in vars(obj)):
-                defined.add(obj)
-                assert info.name == _snake(obj.__name__), (info.name, obj.__name__)
+    for module, obj in classes_defined_in(pkg, Disturbance):
+        # concrete disturbances: the ones with a name of their own (the base classes keep the default one)
+        if "name" in vars(obj):
+            defined.add(obj)
+            assert module == snake_case(obj.__name__), (module, obj.__name__)
     assert defined == set(DISTURBANCES.values())
     assert all(cls.name == name for name, cls in DISTURBANCES.items())
     assert set(pkg.__all__) >= {cls.__name__ for cls in defined}

@@ -93,6 +93,16 @@ def _rollout(env, actions):
     return np.array([env.step(a)[0] for a in actions])
 
 
+def _snapshot_replays(env, actions):
+    """Snapshot ``env``, roll ``actions`` out, restore and roll them again: the two continuations are equal to
+    the bit. Returns the snapshot and the continuation."""
+    snap = env.save_state()
+    first = _rollout(env, actions)
+    env.restore_state(snap)
+    np.testing.assert_array_equal(_rollout(env, actions), first)
+    return snap, first
+
+
 def test_seeding_is_reproducible():
     env = _quiet("rotorlab/PitchRig-v0")
     acts = np.random.default_rng(0).uniform(-0.3, 0.3, (30, 1))
@@ -118,11 +128,7 @@ def test_save_restore_is_exact(env_id, kw):
     mid = (lo + hi) / 2
     acts = mid + 0.2 * (hi - lo) * rng.uniform(-0.5, 0.5, (60,) + lo.shape)
     _rollout(env, acts[:20])
-    snap = env.save_state()
-    first = _rollout(env, acts[20:])
-    env.restore_state(snap)
-    again = _rollout(env, acts[20:])
-    np.testing.assert_array_equal(first, again)
+    snap, first = _snapshot_replays(env, acts[20:])
     # the snapshot is not consumed: restoring twice gives the same continuation again
     env.restore_state(snap)
     np.testing.assert_array_equal(_rollout(env, acts[20:]), first)
@@ -143,10 +149,7 @@ def test_save_restore_is_exact_with_a_flown_controller(env_id, kw, options):
     _rollout(env, acts[:23])
     plugins = [env._ctl] if options else env._fs.plugins
     assert all(np.any(pl.x != 0) for pl in plugins) and (not options or np.any(plugins[0].x_aw != 0))
-    snap = env.save_state()
-    first = _rollout(env, acts[23:])
-    env.restore_state(snap)
-    np.testing.assert_array_equal(_rollout(env, acts[23:]), first)
+    _snapshot_replays(env, acts[23:])
 
 
 def test_save_restore_is_exact_through_a_rope_pull():
@@ -155,10 +158,7 @@ def test_save_restore_is_exact_through_a_rope_pull():
     env.reset(seed=0)
     acts = np.full((90, 1), 2.0 / 30.0)  # 2 % of command
     _rollout(env, acts[:20])
-    snap = env.save_state()
-    first = _rollout(env, acts[20:])
-    env.restore_state(snap)
-    np.testing.assert_array_equal(_rollout(env, acts[20:]), first)
+    _, first = _snapshot_replays(env, acts[20:])
     assert np.min(first[:, 0]) < -5.0  # the rope really pulled the nose down in between
 
 

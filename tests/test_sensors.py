@@ -2,13 +2,12 @@
 the seeded noise stream, and the command limits read from the vehicle TOML."""
 
 import dataclasses
-import importlib
 import math
-import pkgutil
 
 import mujoco
 import numpy as np
 import pytest
+from helpers import classes_defined_in, snake_case
 from scipy.spatial.transform import Rotation
 
 from rotorlab.errors import ConfigError
@@ -40,14 +39,9 @@ def _site(sim, name="imu"):
 
 def test_registry_holds_every_sensor_in_a_file_named_after_it():
     defined = set()
-    for info in pkgutil.iter_modules(sensors_pkg.__path__):
-        mod = importlib.import_module(f"{sensors_pkg.__name__}.{info.name}")
-        for obj in vars(mod).values():
-            if (isinstance(obj, type) and issubclass(obj, Sensor) and obj is not Sensor
-                    and obj.__module__ == mod.__name__):
-                defined.add(obj)
-                snake = "".join(f"_{c.lower()}" if c.isupper() else c for c in obj.__name__).lstrip("_")
-                assert info.name == snake, (info.name, obj.__name__)
+    for module, obj in classes_defined_in(sensors_pkg, Sensor):
+        defined.add(obj)
+        assert module == snake_case(obj.__name__), (module, obj.__name__)
     assert defined == set(SENSORS.values())
     assert all(cls.name == name for name, cls in SENSORS.items())
     # every registered sensor is exercised against MuJoCo below
