@@ -11,10 +11,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import functools  # noqa: E402
-import time  # noqa: E402
 
 import control as ct  # noqa: E402
 import numpy as np  # noqa: E402
+from timing import best_wall_s  # noqa: E402
 
 from rotorlab import lti  # noqa: E402
 from rotorlab.tune.margins import margins  # noqa: E402
@@ -43,15 +43,6 @@ def fourteenth_order_loop():
     return lti.as_ss(L)
 
 
-def timed(fn, repeat=1):
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
-
-
 def main():
     G, C = p2a2_rate_loop()
     rng = np.random.default_rng(0)
@@ -59,13 +50,13 @@ def main():
                                                [1, 5.583 * (1 + 0.05 * rng.standard_normal()), 21.3]), DT), 3 * DT)
             for _ in range(100)]
     w = np.geomspace(0.1, 0.9 * np.pi / DT, 120)
-    t_fit, W = timed(lambda: fit_wdelta(G, reps, w))
+    t_fit, W = best_wall_s(lambda: fit_wdelta(G, reps, w))
     h = h_lim(W, control_sensitivity(G, C))
     print(f"fit_wdelta (100 replicas, 120 frequencies): {t_fit:.2f} s; h_lim = {h:.4f}")
 
     builder = functools.partial(single_loop, C=C)
-    t1, r1 = timed(lambda: montecarlo(G, W, builder, h, n=1000, seed=0, progress=False))
-    t2, r2 = timed(lambda: montecarlo(G, W, builder, h, n=1000, seed=0, n_jobs=2, progress=False))
+    t1, r1 = best_wall_s(lambda: montecarlo(G, W, builder, h, n=1000, seed=0, progress=False))
+    t2, r2 = best_wall_s(lambda: montecarlo(G, W, builder, h, n=1000, seed=0, n_jobs=2, progress=False))
     same = np.array_equal(r1.setpoint, r2.setpoint, equal_nan=True)
     print(f"montecarlo 1000 samples, {r1.t.size} steps: n_jobs=1 {t1:.2f} s ({1e3 * t1 / 1000:.2f} ms/sample), "
           f"n_jobs=2 {t2:.2f} s (speed-up {t1 / t2:.2f}x), identical results: {same}, "
@@ -73,8 +64,8 @@ def main():
 
     L = fourteenth_order_loop()
     assert L.nstates == 14
-    t_m, m = timed(lambda: margins(L), repeat=5)
-    t_ct, ref = timed(lambda: ct.stability_margins(L, method="frd"), repeat=5)
+    t_m, m = best_wall_s(lambda: margins(L), repeat=5)
+    t_ct, ref = best_wall_s(lambda: ct.stability_margins(L, method="frd"), repeat=5)
     print(f"margins of a {L.nstates}th-order discrete loop: {1e3 * t_m:.1f} ms "
           f"(python-control stability_margins(method='frd') {1e3 * t_ct:.1f} ms, ratio {t_m / t_ct:.2f}); "
           f"GM {m.gm_db:.2f} dB @ {m.w_pc_rad_s:.2f} rad/s, PM {m.pm_deg:.2f} deg @ {m.w_gc_rad_s:.2f} rad/s, "
