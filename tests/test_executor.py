@@ -39,7 +39,7 @@ def test_same_campaign_on_every_executor():
     ref = results["serial"]
     assert np.std(ref[0]["columns"]["q"]) > 0.1  # the rig moved: the comparison is not trivially of zeros
     for spec in ("local", "dask"):
-        for r0, r1 in zip(ref, results[spec]):
+        for r0, r1 in zip(ref, results[spec], strict=True):  # every task came back
             assert r0["name"] == r1["name"]
             for col in ("u_lon", "q", "theta"):
                 np.testing.assert_array_equal(r0["columns"][col], r1["columns"][col])

@@ -70,7 +70,7 @@ def test_results_do_not_depend_on_workers(record):
     u, y = record
     a = bootstrap(u, y, IDENT, n_boot=6, seed=3, n_jobs=1, progress=False)
     b = bootstrap(u, y, IDENT, n_boot=6, seed=3, n_jobs=2, chunk=2, progress=False)
-    for ma, mb in zip(a.models, b.models):
+    for ma, mb in zip(a.models, b.models, strict=True):
         np.testing.assert_array_equal(np.asarray(ma.sys.A), np.asarray(mb.sys.A))
     c = bootstrap(u, y, IDENT, n_boot=6, seed=4, progress=False)
     assert not np.array_equal(np.asarray(a.models[0].sys.A), np.asarray(c.models[0].sys.A))

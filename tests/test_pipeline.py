@@ -466,7 +466,7 @@ def test_report_tables_are_well_formed_and_lead_with_the_key_metrics(run):
     for sc, labels in first.items():
         sec = md.split(f"### {sc}\n", 1)[1]
         rows = [ln for ln in sec.splitlines() if ln.startswith("| ")][1:len(labels) + 1]
-        assert all(r[2:].startswith(lab) for r, lab in zip(rows, labels)), rows
+        assert len(rows) == len(labels) and all(r[2:].startswith(lab) for r, lab in zip(rows, labels)), rows
         assert all(re.search(r"\[[^\]]+\] \|", r) for r in rows), rows  # a unit on every key metric
         sets = list(s["validation"][sc])
         assert cells(rows[0])[1:] == [f" {fmt(lookup(s['validation'][sc][n], keys[sc]))} " for n in sets]

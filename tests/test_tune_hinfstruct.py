@@ -105,6 +105,8 @@ def test_pid_exact_matrix_derivatives_match_central_differences(dt):
         idx = range(len(th))
         exact = blk.matrix_derivatives(th, idx)
         numeric = Block.matrix_derivatives(blk, th, idx)
+        # one (dA, dB, dC, dD) per parameter on both sides: zip alone would pass a short or empty list
+        assert len(exact) == len(numeric) == len(th) and all(len(e) == len(n) == 4 for e, n in zip(exact, numeric))
         for e, n in zip(exact, numeric):
             for me, mn in zip(e, n):
                 np.testing.assert_allclose(me, mn, rtol=1e-6, atol=1e-6 * max(1.0, np.abs(mn).max()))
@@ -125,6 +127,7 @@ def test_batched_channel_gradients_match_finite_differences():
     prob = hs._Problem(S, chans, [(P, 2, 2)], free, np.ones(th.size))
     pts = hs._Points(chans, [(0, np.array([0.3, 2.0])), (1, np.array([0.5, 1.0, 4.0]))])
     _, grads = prob.evaluate_points(th, pts, grad=True)
+    assert len(grads) == 2  # one per request: the zip below would pass a short list
     for i in range(th.size):
         h = 1e-6
         tp, tm = th.copy(), th.copy()
