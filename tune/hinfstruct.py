@@ -170,12 +170,6 @@ class Channel:
         self.grid = np.logspace(np.log10(self.lo), np.log10(self.hi), self.npoints)
         self.Pgrid = self.plant_at(self.grid)
 
-    def __getstate__(self):
-        # the models travel to worker processes by rotorlab.lti's StateSpace reducer
-        d = self.__dict__.copy()
-        d.pop("_basis", None)  # keyed by object ids, which do not survive the trip
-        return d
-
     def _weight(self, w):
         if self.weight is None:
             return np.ones(np.size(w))
@@ -212,34 +206,53 @@ def _partition(P, nmeas, ncon):
     A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
     nz, nw = C.shape[0] - nmeas, B.shape[1] - ncon
     return dict(A=A, B1=B[:, :nw], B2=B[:, nw:], C1=C[:nz], C2=C[nz:], D11=D[:nz, :nw], D12=D[:nz, nw:],
-                D21=D[nz:, :nw], D22=D[nz:, nw:])
+                D21=D[nz:, :nw], D22=D[nz:, nw:], D22zero=not np.any(D[nz:, nw:]))
+
+
+def _lft_E(part, Dk):
+    """``E = (I - Dk D22)^-1`` and ``E Dk``. With ``D22 = 0`` (every strictly proper u -> y path) E is the
+    identity and no inverse is formed (the products below are then exact, so the values are the same)."""
+    if part["D22zero"]:
+        return None, Dk
+    E = np.linalg.inv(np.eye(Dk.shape[0]) - Dk @ part["D22"])
+    if not np.all(np.isfinite(E)) or np.abs(E).max() > 1e12:
+        raise ValueError("the interconnection is not well posed: I - Dk D22 is singular")
+    return E, E @ Dk
 
 
 def _cl_A(part, Ak, Bk, Ck, Dk):
     """Closed-loop A of ``F_l(P, K)`` alone (states: plant then controller), filled in place: the stability
     constraints need only this, at every optimiser callback."""
     A, B2, C2, D22 = part["A"], part["B2"], part["C2"], part["D22"]
-    E = np.linalg.inv(np.eye(Dk.shape[0]) - Dk @ D22)
-    if not np.all(np.isfinite(E)) or np.abs(E).max() > 1e12:
-        raise ValueError("the interconnection is not well posed: I - Dk D22 is singular")
-    EDk, ECk = E @ Dk, E @ Ck
+    E, EDk = _lft_E(part, Dk)
     n, nk = A.shape[0], Ak.shape[0]
     Acl = np.empty((n + nk, n + nk))
     Acl[:n, :n] = A + B2 @ EDk @ C2
+    if E is None:
+        Acl[:n, n:] = B2 @ Ck
+        Acl[n:, :n] = Bk @ C2
+        Acl[n:, n:] = Ak
+        return Acl
+    ECk = E @ Ck
     Acl[:n, n:] = B2 @ ECk
     Acl[n:, :n] = Bk @ (C2 + D22 @ EDk @ C2)
     Acl[n:, n:] = Ak + Bk @ D22 @ ECk
     return Acl
 
 
-def _cl_matrices(P, nmeas, ncon, Ak, Bk, Ck, Dk, part=None):
+def _cl_matrices(P, nmeas, ncon, Ak, Bk, Ck, Dk, part=None, Acl=None):
+    """Closed-loop (A, B, C, D) of ``F_l(P, K)``; ``Acl`` when the caller already has it (same K)."""
     p = part or _partition(P, nmeas, ncon)
     B1, C1, D11, D12, D21, D22 = p["B1"], p["C1"], p["D11"], p["D12"], p["D21"], p["D22"]
-    Acl = _cl_A(p, Ak, Bk, Ck, Dk)
-    E = np.linalg.inv(np.eye(ncon) - Dk @ D22)
-    EDk = E @ Dk
-    Bcl = np.vstack([B1 + p["B2"] @ EDk @ D21, Bk @ (D21 + D22 @ EDk @ D21)])
-    Ccl = np.hstack([C1 + D12 @ EDk @ p["C2"], D12 @ E @ Ck])
+    if Acl is None:
+        Acl = _cl_A(p, Ak, Bk, Ck, Dk)
+    E, EDk = _lft_E(p, Dk)
+    if E is None:
+        Bcl = np.vstack([B1 + p["B2"] @ EDk @ D21, Bk @ D21])
+        Ccl = np.hstack([C1 + D12 @ EDk @ p["C2"], D12 @ Ck])
+    else:
+        Bcl = np.vstack([B1 + p["B2"] @ EDk @ D21, Bk @ (D21 + D22 @ EDk @ D21)])
+        Ccl = np.hstack([C1 + D12 @ EDk @ p["C2"], D12 @ E @ Ck])
     Dcl = D11 + D12 @ EDk @ D21
     return Acl, Bcl, Ccl, Dcl
 
@@ -251,6 +264,9 @@ def _dAcl(part, Km, dKm):
     Ak, Bk, Ck, Dk = Km
     dA, dB, dC, dD = dKm
     B2, C2, D22 = part["B2"], part["C2"], part["D22"]
+    if part["D22zero"]:  # E = I, dE = 0
+        return np.concatenate([np.concatenate([B2 @ dD @ C2, B2 @ dC], axis=2),
+                               np.concatenate([dB @ C2, dA], axis=2)], axis=1)
     E = np.linalg.inv(np.eye(Dk.shape[0]) - Dk @ D22)
     EDk = E @ Dk
     dE = E @ dD @ D22 @ E
@@ -303,13 +319,13 @@ def _controller_freq(Km, dKm, pts):
     return K, dK
 
 
-def _lft_values(Pf, Wf, off, is_min, K, dK, nz, nw):
-    """Channel values (nf,) and gradients (nfree, nf) at stacked frequency points.
+def _lft_values(Pf, Wf, off, is_min, K, nz, nw):
+    """Channel values (nf,) at stacked frequency points, and what :func:`_lft_grad` needs for their gradients.
 
     ``T = F_l(P(jw), K(jw)) + off``; the value is ``W sigma_max(T)`` (or ``W / sigma_min(T)`` where
     ``is_min``). ``T = P11 + P12 M K P21`` with ``M = (I - K P22)^-1``; the gradient is
     ``d sigma = Re(u^H P12 M dK (I - P22 K)^-1 P21 v)`` with ``(I - P22 K)^-1 P21 = P21 + P22 M K P21``
-    (push-through identity), so one small batched inverse serves values and gradients.
+    (push-through identity), so one small batched inverse and one SVD serve values and gradients.
     """
     N = Pf.shape[0]
     P11, P12 = Pf[:, :nz, :nw], Pf[:, :nz, nw:]
@@ -333,8 +349,14 @@ def _lft_values(Pf, Wf, off, is_min, K, dK, nz, nw):
         sig, u, v = S[ar, k], U[ar, :, k], Vh[ar, k, :].conj()
     sig = np.maximum(sig, 1e-300)
     val = np.where(is_min, Wf / sig, Wf * sig)
-    if dK is None:
-        return val, None
+    return val, (left, u, v, M, KP21, sig, val)
+
+
+def _lft_grad(Pf, Wf, is_min, ctx, dK, nz, nw):
+    """Gradients (nfree, nf) of the values :func:`_lft_values` returned with ``ctx``, along ``dK``."""
+    N = Pf.shape[0]
+    P21, P22 = Pf[:, nz:, :nw], Pf[:, nz:, nw:]
+    left, u, v, M, KP21, sig, val = ctx
     right = P21 + P22 @ (M @ KP21)
     a = np.einsum("fzp,fz->fp", left.conj(), u)            # left^H u
     b = np.einsum("fyw,fw->fy", right, v)                   # right v
@@ -342,7 +364,7 @@ def _lft_values(Pf, Wf, off, is_min, K, dK, nz, nw):
     dsig = np.real(np.sum(dK.reshape(dK.shape[0], N, -1) * ab[None], axis=2))
     grad = Wf * dsig
     grad[:, is_min] = -val[is_min] * dsig[:, is_min] / sig[is_min]  # d(W/sigma) = -(W/sigma) d sigma / sigma
-    return val, grad
+    return grad
 
 
 def _small_inv(X):
@@ -367,11 +389,11 @@ class _Points:
     and a small LFT.
     """
 
-    def __init__(self, channels, items, plants=None):
+    def __init__(self, channels, items, plants=None, basis=None):
         self.n_items = len(items)
         ws = [np.atleast_1d(np.asarray(w, float)) for _, w in items]
         if plants is None:
-            plants = self._plants(channels, items, ws)
+            plants = self._plants(channels, items, ws, {} if basis is None else basis)
         groups = {}
         for k, ((ci, _), w, Pf) in enumerate(zip(items, ws, plants)):
             ch = channels[ci]
@@ -387,9 +409,10 @@ class _Points:
                        for (nz, nw, _, _), g in groups.items()]
 
     @staticmethod
-    def _plants(channels, items, ws):
+    def _plants(channels, items, ws, basis):
         """Plant responses of every request: channels built on the same plant (same A, e.g. every goal of
-        one model) share one batched solve ``(zI - A) X = [B_1 ... B_m]`` over all their frequencies."""
+        one model) share one batched solve ``(zI - A) X = [B_1 ... B_m]`` over all their frequencies.
+        ``basis`` caches the column bases by the tuple of channel indices (the owner's channel list)."""
         plants = [None] * len(items)
         by_a = {}
         for k, (ci, _) in enumerate(items):
@@ -405,16 +428,15 @@ class _Points:
             if A.shape[0]:
                 # the channels' input matrices are views of one plant's few inputs: solve for an orthonormal
                 # basis of their column space only (rank 1 for the SISO cascade), then map back; the basis is
-                # kept on the first channel for the next request of the same channels (the peak search asks
-                # for new frequencies at every evaluation)
-                key = tuple(id(channels[ci]) for ci in cis)
-                cache = channels[cis[0]].__dict__.setdefault("_basis", {})
-                if key not in cache:
+                # kept for the next request of the same channels (the peak search asks for new frequencies at
+                # every evaluation)
+                key = tuple(cis)
+                if key not in basis:
                     Ball = np.hstack([channels[ci]._abcd[1] for ci in cis])
                     U, sv, Vt = np.linalg.svd(Ball, full_matrices=False)
                     r = max(int(np.sum(sv > 1e-12 * sv[0])), 1) if sv.size and sv[0] > 0 else 1
-                    cache[key] = (U[:, :r], sv[:r, None] * Vt[:r], np.eye(A.shape[0]))
-                Ur, SV, eye = cache[key]
+                    basis[key] = (U[:, :r], sv[:r, None] * Vt[:r], np.eye(A.shape[0]))
+                Ur, SV, eye = basis[key]
                 pts = channels[cis[0]].points(wall)
                 X = np.linalg.solve(pts[:, None, None] * eye - A,
                                     np.broadcast_to(Ur, (wall.size,) + Ur.shape)) @ SV
@@ -449,21 +471,55 @@ class _Problem:
         self.is_soft = [not c.hard for c in self.channels]
         if not any(self.is_soft):
             self.is_soft = [True] * len(self.channels)
-        self.grid_points = _Points(self.channels, [(i, c.grid) for i, c in enumerate(self.channels)],
-                                               [c.Pgrid for c in self.channels])
+        self._basis = {}
+        self.grid_points = self.points([(i, c.grid) for i, c in enumerate(self.channels)],
+                                       [c.Pgrid for c in self.channels])
         self._peak_cache = (None, None)
         self._exact_cache = {}
+        self._cl_cache = {}
         c0 = self.channels[0]
         # one plain H-inf channel (hinfstruct): its objective is the exact ab13dd norm
         self.exact = (len(self.channels) == 1 and c0.exact_peak and c0.weight is None and c0.offset == 0.0
                       and c0.mode == "max" and not c0.hard and poles is None)
         self._exact_part = _partition(c0.P, c0.nmeas, c0.ncon) if self.exact else None
+        # the stability plant that is the exact channel's own (hinfstruct's only one): its closed-loop A and
+        # eigenvalues serve the norm and the mode frequencies too
+        self._exact_stab = None
+        if self.exact:
+            same = [k for k, (part, dt) in enumerate(zip(self._parts, self._stab_dt))
+                    if dt == c0.dt and all(np.array_equal(part[key], self._exact_part[key]) for key in part)]
+            self._exact_stab = same[0] if same else None
 
     def __getstate__(self):
         d = self.__dict__.copy()
         d["_peak_cache"] = (None, None)
         d["_exact_cache"] = {}
+        d["_cl_cache"] = {}
         return d
+
+    def points(self, items, plants=None) -> _Points:
+        """A :class:`_Points` request over this problem's channels (sharing its plant-basis cache)."""
+        return _Points(self.channels, items, plants, basis=self._basis)
+
+    def _closed_loops(self, theta, Km):
+        """Closed-loop A of every stability plant at theta, and their eigenvalues once asked for
+        (``lam`` entry, None until then); the last few points are cached: the stability test, the norm,
+        the mode frequencies, the constraint values and then their Jacobian all ask for the same point."""
+        key = np.asarray(theta, float).tobytes()
+        hit = self._cl_cache.get(key)
+        if hit is None:
+            hit = {"A": [_cl_A(part, *Km) for part in self._parts], "lam": None}
+            if len(self._cl_cache) >= 8:
+                self._cl_cache.pop(next(iter(self._cl_cache)))
+            self._cl_cache[key] = hit
+        return hit
+
+    def _eigvals(self, theta, Km=None):
+        """Closed-loop eigenvalues of every stability plant at theta (cached with the closed-loop A)."""
+        hit = self._closed_loops(theta, self.matrices(theta)[0] if Km is None else Km)
+        if hit["lam"] is None:
+            hit["lam"] = [np.linalg.eigvals(Acl) if Acl.shape[0] else np.zeros(0) for Acl in hit["A"]]
+        return hit["lam"]
 
     def exact_peak(self, theta):
         """(H-inf norm, peak frequency rad/s) of the first channel's closed loop by ab13dd (rotorlab.lti), for
@@ -474,7 +530,9 @@ class _Problem:
         hit = self._exact_cache.get(key)
         if hit is None:
             ch = self.channels[0]
-            mats = _cl_matrices(ch.P, ch.nmeas, ch.ncon, *self.matrices(theta)[0], part=self._exact_part)
+            Km = self.matrices(theta)[0]
+            Acl = None if self._exact_stab is None else self._closed_loops(theta, Km)["A"][self._exact_stab]
+            mats = _cl_matrices(ch.P, ch.nmeas, ch.ncon, *Km, part=self._exact_part, Acl=Acl)
             g, w = lti.hinfnorm_stable(*mats, ch.dt, tols=(1e-8,))
             hit = (g, (w if np.isfinite(w) else ch.lo))
             if len(self._exact_cache) >= 8:
@@ -500,8 +558,10 @@ class _Problem:
         """Stability constraint values g >= 0 (one per closed-loop eigenvalue and plant) and their gradients."""
         gs, dgs = [], []
         Km, dKm = self.matrices(theta, grad)
-        for part, dt in zip(self._parts, self._stab_dt):
-            Acl = _cl_A(part, *Km)
+        cl = self._closed_loops(theta, Km)
+        lams = None if grad else self._eigvals(theta, Km)
+        for k, (part, dt) in enumerate(zip(self._parts, self._stab_dt)):
+            Acl = cl["A"][k]
             if Acl.shape[0] == 0:
                 continue
             if grad:
@@ -511,7 +571,7 @@ class _Problem:
                 except np.linalg.LinAlgError:  # defective: the derivative is unbounded there anyway
                     yh = np.linalg.pinv(xr)
             else:
-                lam = np.linalg.eigvals(Acl)
+                lam = lams[k]
             g = self._eig_g(lam, dt)
             gs.append(g)
             if grad:
@@ -555,18 +615,36 @@ class _Problem:
     def evaluate_points(self, theta, pts: _Points, grad=False):
         """Values (and gradients w.r.t. the free parameters, unscaled) of every request in ``pts``: lists in
         request order. One controller response and one LFT per channel group."""
-        Km, dKm = self.matrices(theta, grad)
-        vals, grads = [None] * pts.n_items, [None] * pts.n_items
+        vals, ctx = self.point_values(theta, pts)
+        return vals, (self.point_grads(theta, pts, ctx) if grad else None)
+
+    def point_values(self, theta, pts: _Points):
+        """Values of every request in ``pts`` (list in request order) and the per-group context from which
+        :meth:`point_grads` completes their gradients without a second LFT or SVD."""
+        Km = self.matrices(theta)[0]
+        vals, ctx = [None] * pts.n_items, []
         for nz, nw, cat, mapping in pts.groups:
-            K, dK = _controller_freq(Km, dKm, cat["pts"])
-            v, g = _lft_values(cat["P"], cat["W"], cat["off"], cat["mn"], K, dK, nz, nw)
+            K, _ = _controller_freq(Km, None, cat["pts"])
+            v, c = _lft_values(cat["P"], cat["W"], cat["off"], cat["mn"], K, nz, nw)
+            ctx.append(c)
             i = 0
             for k, n in mapping:
                 vals[k] = v[i:i + n]
-                if grad:
-                    grads[k] = g[:, i:i + n]
                 i += n
-        return vals, grads
+        return vals, ctx
+
+    def point_grads(self, theta, pts: _Points, ctx):
+        """Gradients (nfree, nf) of the values :meth:`point_values` returned with ``ctx`` at the same theta."""
+        Km, dKm = self.matrices(theta, True)
+        grads = [None] * pts.n_items
+        for (nz, nw, cat, mapping), c in zip(pts.groups, ctx):
+            _, dK = _controller_freq(Km, dKm, cat["pts"])
+            g = _lft_grad(cat["P"], cat["W"], cat["mn"], c, dK, nz, nw)
+            i = 0
+            for k, n in mapping:
+                grads[k] = g[:, i:i + n]
+                i += n
+        return grads
 
     def all_peaks(self, theta, nmax=6):
         """Local maxima of every channel's value over its band, each channel's list sorted by value: dense
@@ -593,7 +671,7 @@ class _Problem:
             # one request per channel (all its peaks' sub-grids), split back per peak
             chs = np.unique(ci_c)
             req = [(c, wz[ci_c == c].ravel()) for c in chs]
-            vals = self.evaluate_points(theta, _Points(self.channels, req))[0]
+            vals = self.evaluate_points(theta, self.points(req))[0]
             vz = np.empty_like(wz)
             for c, v in zip(chs, vals):
                 vz[ci_c == c] = v.reshape(-1, frac.size)
@@ -618,12 +696,15 @@ class _Problem:
         narrower than the grid spacing peak), as (value, w) pairs of the plain H-inf channel."""
         ch = self.channels[0]
         g, wpk = self.exact_peak(theta)
-        lam = np.linalg.eigvals(_cl_A(self._exact_part, *self.matrices(theta)[0]))
+        if self._exact_stab is None:
+            lam = np.linalg.eigvals(_cl_A(self._exact_part, *self.matrices(theta)[0]))
+        else:
+            lam = self._eigvals(theta)[self._exact_stab]
         wm = np.abs(np.angle(lam)) / ch.dt if ch.dt else np.abs(lam.imag)
         wm = np.unique(np.clip(wm[wm > 0], ch.lo, ch.hi))
         pts = [(float(g), float(min(max(wpk, ch.lo), ch.hi)))]
         if wm.size:
-            v = self.evaluate_points(theta, _Points(self.channels, [(0, wm)]))[0][0]
+            v = self.evaluate_points(theta, self.points([(0, wm)]))[0][0]
             pts += [(float(a), float(b)) for a, b in zip(v, wm) if a >= 0.3 * g]
         return sorted(pts, reverse=True)
 
@@ -651,40 +732,45 @@ def _better(a, b, tol=0.0):
 class _Subproblem:
     """Constraint values and Jacobian of one trust-region SLSQP solve over a fixed active frequency set.
 
-    SLSQP's line search asks for the constraint values at many trial points (five to ten per iteration on the
-    cascade specs) and for the Jacobian only at the accepted ones, so values are computed alone (no controller
-    derivatives, eigenvalues without eigenvectors) and the Jacobian on request, each cached by the point.
+    The values and the Jacobian depend on the controller part ``z[:nx]`` only (t enters the rows linearly),
+    so both are cached by it. SLSQP's line search asks for the values at trial points (five to ten per
+    iteration on the cascade specs, about one on hinfstruct's problems) and for the Jacobian at the accepted
+    one, so the values are computed alone (no controller derivatives, eigenvalues without eigenvectors) but
+    keep what the Jacobian needs (the LFT and its SVD, the closed-loop A), which completes them on request.
     """
 
     def __init__(self, prob: _Problem, active, activeP):
         self.prob = prob
         self.nx = int(prob.free.sum())
         self.chans = [ci for ci in range(len(prob.channels)) if len(active[ci])]
-        self.pts = _Points(prob.channels, [(ci, active[ci]) for ci in self.chans],
-                                       [np.array(activeP[ci]) for ci in self.chans])
+        self.pts = prob.points([(ci, active[ci]) for ci in self.chans], [np.array(activeP[ci]) for ci in self.chans])
         self._fkey = self._jkey = None
 
-    def fun(self, z):
-        key = z.tobytes()
+    def _channels(self, z):
+        key = z[:self.nx].tobytes()
         if key != self._fkey:
-            prob, nx = self.prob, self.nx
-            th = prob.theta(z[:nx])
-            vals = prob.evaluate_points(th, self.pts)[0]
-            rows = []
-            for ci, v in zip(self.chans, vals):
-                if prob.is_soft[ci]:
-                    rows.append(z[nx] - v)            # t - v
-                if prob.is_hard[ci]:
-                    rows.append(HARD_BOUND - v)
-            self._fkey, self._fval = key, np.concatenate(rows + [prob.eig_terms(th)])
+            th = self.prob.theta(z[:self.nx])
+            vals, ctx = self.prob.point_values(th, self.pts)
+            self._fkey, self._fval = key, (th, vals, ctx, self.prob.eig_terms(th))
         return self._fval
+
+    def fun(self, z):
+        prob, nx = self.prob, self.nx
+        _, vals, _, eig = self._channels(z)
+        rows = []
+        for ci, v in zip(self.chans, vals):
+            if prob.is_soft[ci]:
+                rows.append(z[nx] - v)            # t - v
+            if prob.is_hard[ci]:
+                rows.append(HARD_BOUND - v)
+        return np.concatenate(rows + [eig])
 
     def jac(self, z):
         key = z[:self.nx].tobytes()
         if key != self._jkey:
             prob = self.prob
-            th = prob.theta(z[:self.nx])
-            grads = prob.evaluate_points(th, self.pts, grad=True)[1]
+            th, _, ctx, _ = self._channels(z)
+            grads = prob.point_grads(th, self.pts, ctx)
             dg_eig = prob.eig_terms(th, grad=True)[1]
             rows = []
             for ci, g in zip(self.chans, grads):
@@ -714,8 +800,7 @@ def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, sub_
     def add_peaks(theta):
         held = [ci for ci in range(nch) if active[ci]]
         if held:  # drop active frequencies far below the current level: they never bind
-            pts = _Points(prob.channels, [(ci, active[ci]) for ci in held],
-                          [np.array(activeP[ci]) for ci in held])
+            pts = prob.points([(ci, active[ci]) for ci in held], [np.array(activeP[ci]) for ci in held])
             for ci, vals in zip(held, prob.evaluate_points(theta, pts)[0]):
                 keep = vals >= 0.3 * vals.max()
                 active[ci] = [w for w, k in zip(active[ci], keep) if k]
@@ -975,7 +1060,7 @@ class _Objective:
                     f += PENALTY * (h - HARD_BOUND)
                     req.append((hci, hw))
         req = [(ci, np.array([min(max(w, prob.channels[ci].lo), prob.channels[ci].hi)])) for ci, w in req]
-        grads = prob.evaluate_points(th, _Points(prob.channels, req), grad=True)[1]
+        grads = prob.evaluate_points(th, prob.points(req), grad=True)[1]
         g = grads[0][:, 0] + (PENALTY * grads[1][:, 0] if len(grads) > 1 else 0.0)
         return float(f), g * prob.scale
 
