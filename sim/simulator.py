@@ -35,6 +35,8 @@ def vehicle_mixer(vehicle) -> Mixer:
 
 
 _STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)  # Simulator.tick's acceleration-only forward pass, looked up once
+_STAGE_ACC = int(mujoco.mjtStage.mjSTAGE_ACC)
+_SENSORS_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
 #: MuJoCo warnings that mean the run diverged: MuJoCo flags (and resets) NaN/inf states through them, so no
 #: array scan is needed
@@ -130,9 +132,18 @@ def strided(ids):
 
 def set_rotor_ctrl(ctrl, rotor_pct, vehicle, thrust, spinup) -> None:
     """Rotor commands (%, one per thrust actuator) into MuJoCo's controls of the thrust actuators and their
-    spin-up twins (same control; None: none): one simulation (``ctrl (nu,)``, ``rotor_pct (n_rotors,)``) or a row
-    per simulation (``(n, nu)``, ``(n, n_rotors)``, the batched runner). ``thrust``, ``spinup``: ids or
-    :func:`strided` slices."""
+    spin-up twins (same control; None: none): one simulation (``ctrl (nu,)``, ``rotor_pct`` a sequence
+    ``(n_rotors,)``) or a row per simulation (``(n, nu)``, ``(n, n_rotors)``, the batched runner). ``thrust``,
+    ``spinup``: ids or :func:`strided` slices."""
+    k = vehicle.ctrl_per_pct
+    if k is not None and ctrl.ndim == 1:
+        # one simulation under a linear command map (variable pitch), every tick: command_to_ctrl's product in
+        # floats, one store per actuator group (numpy costs several times more for four rotors)
+        c = [v * k for v in rotor_pct]
+        ctrl[thrust] = c
+        if spinup is not None:
+            ctrl[spinup] = c
+        return
     c = vehicle.command_to_ctrl(rotor_pct).T
     # indexed through the transposes (actuator index first): ctrl[..., ids] costs 10x more than ctrl[ids] per tick
     ctrl.T[thrust] = c
@@ -192,7 +203,9 @@ class Simulator:
                  sensor_noise: bool = True, disturbances=()):
         self.disturbances = list(disturbances)
         self.wind_disturbances = [d for d in self.disturbances if isinstance(d, WindDisturbance)]
-        self._wind_only = len(self.wind_disturbances) == len(self.disturbances)
+        #: the earliest MuJoCo stage the disturbances' updates change (Disturbance.stage; none: the acceleration
+        #: stage, the only one the rotor commands reach), for the regrouped tick
+        self._update_stage = min((int(d.stage) for d in self.disturbances), default=_STAGE_ACC)
         if isinstance(scene, Scene):
             self.scene = scene
         else:
@@ -219,7 +232,6 @@ class Simulator:
         self.seed = seed
         m = self.model
         self._n_thrust = len(self.scene.thrust_actuators)
-        self._ctrl_per_pct = self.vehicle.ctrl_per_pct
         #: where the rotor commands and the wind go in ``ctrl`` (:func:`set_rotor_ctrl`, :func:`set_wind`): the
         #: thrust actuators, their spin-up twins (same ctrl, the rotor-inertia reaction; None: none) and the
         #: rotor aero actuators, as :func:`strided` slices where they are
@@ -251,7 +263,8 @@ class Simulator:
         self._pos_v, self._vel_v, self._omega_v = d.qpos[0:3], d.qvel[0:3], d.qvel[3:6]
         af = max(self._airframe, 0)
         self._af_xquat, self._af_xmat, self._af_xpos = d.xquat[af], d.xmat[af], d.xpos[af]
-        self._wind_v = self.model.opt.wind
+        self._opt = self.model.opt
+        self._wind_v = self._opt.wind
         self._warnings = [(w, d.warning[w]) for w in DIVERGENCE_WARNINGS]
         self._gyro_scale = (FLU_TO_FRD * RAD2DEG).tolist()
         self.wind_world = np.zeros(3)
@@ -302,16 +315,7 @@ class Simulator:
         thrust-stand test."""
         rotor = tuple(rotor_pct[: self._n_thrust])  # a copy the caller cannot change under the simulator
         self.rotor_pct = rotor
-        k = self._ctrl_per_pct
-        if k is None:
-            set_rotor_ctrl(self._ctrl_v, np.array(rotor, dtype=float), self.vehicle, self.thrust_ids, self.spinup_ids)
-            return
-        # a linear command map (variable pitch): set_rotor_ctrl's product in floats, one store per actuator group
-        # (the numpy version costs several times more for four rotors, every tick)
-        c = [v * k for v in rotor]
-        self._ctrl_v[self.thrust_ids] = c
-        if self.spinup_ids is not None:
-            self._ctrl_v[self.spinup_ids] = c
+        set_rotor_ctrl(self._ctrl_v, rotor, self.vehicle, self.thrust_ids, self.spinup_ids)
 
     def add_axis_input(self, commands_pct) -> None:
         """Add axis commands ``[collective, roll, pitch, yaw]`` (%) to this tick's rotor commands at the
@@ -327,14 +331,20 @@ class Simulator:
     def tick(self, controls_only: bool = False) -> None:
         """Advance one control period: disturbances update at the tick, then the batched physics steps.
 
+        The sensors are computed at the tick only, where they are read (the IMU is sampled at the tick):
+        MuJoCo skips them in the physics steps between (``mjDSBL_SENSOR``; the accelerometer's extra
+        recursive Newton-Euler pass alone is some 10 % of a step). No physics reads a sensor, so the state is the
+        same bit for bit, and so are the sensors at the tick.
+
         ``controls_only``: the caller vouches that since the last tick or :meth:`reset` it changed nothing in
         MuJoCo's model or data but ``ctrl`` (the runner's loop). Then the first physics step reuses the position
         and velocity stages the last tick computed for this very state (``mj_step2``; they do not depend on the
-        controls; wind disturbances, which reach the velocity stage through ``opt.wind``, have it recomputed, and
-        other disturbances take the plain step), and MuJoCo's state checks run at the end of the tick
-        (``mj_step1``) instead of at the start of the next: the same calls in another grouping, so the same
-        floats, one forward pass fewer per tick. A state that went bad is then caught at the tick it went bad,
-        before it is measured and logged.
+        controls), unless a disturbance changes their inputs: from the earliest stage a disturbance changes
+        (:attr:`Disturbance.stage <rotorlab.sim.disturbances.base.Disturbance.stage>`) on, the stages are
+        recomputed (wind: the velocity stage, through ``opt.wind``; positions, e.g. a mocap anchor: the plain
+        step). MuJoCo's state checks then run at the end of the tick (``mj_step1``) instead of at the start of
+        the next: the same calls in another grouping, so the same floats, one forward pass fewer per tick. A
+        state that went bad is then caught at the tick it went bad, before it is measured and logged.
         """
         m, d = self.model, self.data
         regroup = controls_only
@@ -346,22 +356,30 @@ class Simulator:
                 dist.update(self, t)
             set_wind(self._wind_v, self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.wind_world,
                      self.aero_ids)
-            if regroup and self._wind_only:
-                mujoco.mj_fwdVelocity(m, d)  # the passive forces (fuselage drag) under the new wind
+            if regroup and self._update_stage < _STAGE_ACC:
+                if self._update_stage == _STAGE_VEL:
+                    mujoco.mj_fwdVelocity(m, d)  # the passive forces (fuselage drag) under the new wind
+                else:
+                    regroup = False
+        opt = self._opt
+        flags = opt.disableflags
+        opt.disableflags = flags | _SENSORS_OFF
+        try:
+            if regroup:
+                mujoco.mj_step2(m, d)
+                if self.n_substeps > 1:
+                    mujoco.mj_step(m, d, nstep=self.n_substeps - 1)
             else:
-                regroup = False
+                mujoco.mj_step(m, d, nstep=self.n_substeps)
+        finally:
+            opt.disableflags = flags
         if regroup:
-            mujoco.mj_step2(m, d)
-            if self.n_substeps > 1:
-                mujoco.mj_step(m, d, nstep=self.n_substeps - 1)
             # the IMU is sampled at the tick: mj_step1's checks and position/velocity stages, then the
             # acceleration stage (the accelerometer) under the controls held over the period, as mj_forward
             mujoco.mj_step1(m, d)
             mujoco.mj_forwardSkip(m, d, _STAGE_VEL, 0)
-            return
-        mujoco.mj_step(m, d, nstep=self.n_substeps)
-        # mj_step leaves the sensors of the state before its last step; the IMU is sampled at the tick
-        mujoco.mj_forward(m, d)
+        else:
+            mujoco.mj_forward(m, d)  # the state's stages and sensors at the tick
 
     def check(self) -> str | None:
         """Why the run must stop, or None: NaN, a MuJoCo warning, the rig's stops, a crash or a flip."""

@@ -10,7 +10,7 @@ import pytest
 from rotorlab.cli import main
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import build_scene
-from rotorlab.sim.disturbances import DrydenWind, MeanWind
+from rotorlab.sim.disturbances import DrydenWind, InputDisturbanceStep, MeanWind, RecirculationMoment, RopePull
 from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.simulator import Simulator, body_wind, set_wind
 from rotorlab.vehicles import load_vehicle, vehicle_path
@@ -100,23 +100,46 @@ def test_diverging_run_stops_and_keeps_log(tmp_path):
     assert 0 < rows < 1000
 
 
-@pytest.mark.parametrize("vehicle, wind", [("anteos-p2a2", False), ("tuhh-quad", False), ("anteos-p2a2", True)])
-def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle, wind):
-    """Simulator.tick(controls_only=True) (the runner's loop) reuses the tick's position and velocity stages for
-    the next physics step: the same state, sensors and actuator forces bit for bit under changing commands; a bad
-    state still stops the run."""
-    def dists():  # wind reaches the velocity stage (opt.wind), which the regrouped step recomputes
-        return [MeanWind(3.0, 30.0), DrydenWind(3.0, 5.0, 2.0, 30.0)] if wind else []
+def _plain_mujoco_tick(sim) -> None:
+    """The reference tick: the disturbances' update, then MuJoCo's plain steps with every stage and sensor
+    computed in every step, then a forward pass at the tick."""
+    m, d = sim.model, sim.data
+    d.xfrc_applied[:] = 0.0
+    sim.wind_world[:] = 0.0
+    for dist in sim.disturbances:
+        dist.update(sim, sim.time)
+    set_wind(m.opt.wind, d.ctrl, d.xmat[sim._airframe] if sim._airframe >= 0 else None, sim.wind_world,
+             sim.aero_ids)
+    mujoco.mj_step(m, d, nstep=sim.n_substeps)
+    mujoco.mj_forward(m, d)
 
-    plain, fast = (Simulator("free-flight", vehicle, sensor_noise=False, disturbances=dists()) for _ in range(2))
+
+@pytest.mark.parametrize("vehicle, scene, dists", [
+    ("anteos-p2a2", "free-flight", lambda: []),
+    ("tuhh-quad", "free-flight", lambda: []),
+    ("anteos-p2a2", "free-flight", lambda: [MeanWind(3.0, 30.0), DrydenWind(3.0, 5.0, 2.0, 30.0)]),  # stage VEL
+    ("tuhh-quad", "pitch-rig", lambda: [RecirculationMoment(0.3, 2.0), InputDisturbanceStep(0.1, 0.3)]),  # ACC
+    ("anteos-p2a2", "roll-rig", lambda: [RecirculationMoment(0.3, 2.0), MeanWind(2.0, 80.0)]),  # ACC and VEL
+    ("anteos-p2a2", "pitch-rig", lambda: [RopePull(-10.0, 0.2, 0.3, 0.5)]),  # stage POS: the plain step
+])
+def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle, scene, dists):
+    """Simulator.tick, plain and regrouped (controls_only=True, the runner's loop: it reuses the tick's position
+    and velocity stages for the next physics step as far as the disturbances' Disturbance.stage allows, and skips
+    the sensors between ticks), gives the state, sensors and actuator forces of MuJoCo's plain steps bit for bit
+    under changing commands; a bad state still stops the run."""
+    ref, plain, fast = (Simulator(scene, vehicle, sensor_noise=False, disturbances=dists()) for _ in range(3))
     rng = np.random.default_rng(0)
     for _ in range(40):
         cmd = plain.vehicle.hover_collective_pct + rng.uniform(-3.0, 3.0, 4)
-        for sim, ctrl_only in ((plain, False), (fast, True)):
+        for sim in (ref, plain, fast):
             sim.set_commands(cmd)
-            sim.tick(controls_only=ctrl_only)
-        for field in ("qpos", "qvel", "act", "sensordata", "actuator_force", "xquat"):
-            assert np.array_equal(getattr(plain.data, field), getattr(fast.data, field)), field
+        _plain_mujoco_tick(ref)
+        plain.tick()
+        fast.tick(controls_only=True)
+        for sim in (plain, fast):
+            for field in ("qpos", "qvel", "act", "sensordata", "actuator_force", "xquat"):
+                assert np.array_equal(getattr(ref.data, field), getattr(sim.data, field)), field
+            assert sim.model.opt.disableflags == 0
     assert fast.check() is None
     fast.data.qvel[0] = np.nan
     fast.tick(controls_only=True)

@@ -8,6 +8,8 @@ mocap bodies it added to the model in :meth:`edit`. Its ground truth is logged t
 
 from __future__ import annotations
 
+import mujoco
+
 from rotorlab.errors import ConfigError
 
 
@@ -20,6 +22,12 @@ class Disturbance:
     columns: dict = {}
     #: scenes that can host it (None: all)
     scenes: tuple | None = None
+    #: the earliest stage of MuJoCo's forward pass whose inputs :meth:`update` changes: ``mjSTAGE_POS``
+    #: (positions, mocap bodies, the model; the safe default), ``mjSTAGE_VEL`` (``opt.wind``: anything added to
+    #: ``sim.wind_world``), ``mjSTAGE_ACC`` (controls, ``xfrc_applied``). The simulator's regrouped tick
+    #: recomputes the stages from there on (:meth:`rotorlab.sim.simulator.Simulator.tick`); an understated stage
+    #: would leave stale forces in the first physics step of a tick.
+    stage: mujoco.mjtStage = mujoco.mjtStage.mjSTAGE_POS
 
     def check_scene(self, scene: str) -> None:
         """Raise a clear error when the scene cannot host this disturbance."""

@@ -12,6 +12,7 @@ the sum. The controller's saturation at the command limit (40 % on the TUHH twin
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 
 from rotorlab.errors import ConfigError
@@ -42,6 +43,7 @@ class InputDisturbanceStep(Disturbance):
     name = "input-step"
     scenes = tuple(RIG_AXES)
     columns = {"d_input": "%", "d_moment": "N m"}
+    stage = mujoco.mjtStage.mjSTAGE_ACC  # the rotor controls
 
     def __init__(self, fraction: float, t_s: float = 1.0, hold_s: float | None = None):
         if not (np.isfinite(fraction) and abs(fraction) <= 1.0):

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 
 from rotorlab.errors import ConfigError, RotorlabError
@@ -42,6 +43,7 @@ class WindDisturbance(Disturbance):
     period that starts at ``t`` (s)."""
 
     columns = WIND_COLUMNS
+    stage = mujoco.mjtStage.mjSTAGE_VEL  # the fuselage drag under opt.wind; the rotor aero controls come later
 
     def update(self, sim, t: float) -> None:
         sim.wind_world += self.wind_ned(t) * _NED_TO_ZUP

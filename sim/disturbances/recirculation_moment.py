@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import mujoco
 import numpy as np
 
 from rotorlab.errors import ConfigError, RotorlabError
@@ -33,6 +34,7 @@ class RecirculationMoment(Disturbance):
     name = "recirculation"
     scenes = tuple(RIG_AXES)
     columns = {"recirc_moment": "N m"}
+    stage = mujoco.mjtStage.mjSTAGE_ACC  # xfrc_applied
 
     def __init__(self, rms_Nm: float, duration_s: float, cutoff_hz: float = 1.5):
         RecirculationTorque(rms_Nm, cutoff_hz, n_axes=1)  # validates

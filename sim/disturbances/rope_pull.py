@@ -46,6 +46,7 @@ class RopePull(Disturbance):
     name = "rope"
     scenes = ("pitch-rig",)
     columns = {"rope_tension": "N", "rope_length": "m", "rope_pulled": "-"}
+    stage = mujoco.mjtStage.mjSTAGE_POS  # the mocap anchor
 
     def __init__(self, pull_deg: float = -20.0, t_pull_s: float = 1.0, ramp_s: float = 0.5, hold_s: float = 2.0,
                  length_m: float = 1.0, slack_m: float = 0.05):
