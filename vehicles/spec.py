@@ -11,6 +11,7 @@ right), see ``rotorlab.sim.frames``.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from pathlib import Path
 
@@ -202,7 +203,7 @@ class VehicleSpec:
             return cmd * k
         return self.rotor.speed(cmd / 100.0) ** 2
 
-    @property
+    @functools.cached_property  # asked every control tick (rotorlab.sim.simulator.set_rotor_ctrl); the spec is frozen
     def ctrl_per_pct(self) -> float | None:
         """Slope of :meth:`command_to_ctrl` where the map is linear (variable pitch: blade pitch in rad per %),
         None where it is not (variable RPM)."""
