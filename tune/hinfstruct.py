@@ -6,7 +6,9 @@ non-smooth: the norm is a maximum over frequency of the largest singular value. 
 
 Stabilisation. The spectral abscissa of the closed loop (spectral radius - 1 when discrete; pole-region terms
 included when the caller asks for them) is minimised by nonsmooth BFGS with weak Wolfe steps, with no step
-cap, until it is negative, with random restarts of the size of the best point. A start that cannot stabilise
+cap, until it is negative, with random restarts of the size of the best point; where that ends far larger than
+the start (the abscissa can keep falling slowly along a high-gain direction), random points of the start's size
+are stabilised too and the smallest stable point is kept. A start that cannot stabilise
 reports the minimised abscissa and a certificate: unstable modes that no controller of the structure moves
 (PBH rank test on the plant, or an eigenvalue shared by the closed loops of random controllers).
 :class:`NotStabilisableError` is raised only with such a certificate; otherwise :class:`StabilisationError`
