@@ -15,6 +15,7 @@ import rotorlab  # noqa: E402,F401  (registers the envs)
 from rotorlab.designs import design  # noqa: E402
 from rotorlab.errors import UnknownNameError  # noqa: E402
 from rotorlab.sim.disturbances.base import Disturbance  # noqa: E402
+from rotorlab.sim.disturbances.rope_pull import RopePull  # noqa: E402
 from rotorlab.sim.env_baselines import HoverPIDPolicy, RigPIDPolicy, episode_return  # noqa: E402
 
 
@@ -153,8 +154,7 @@ def test_save_restore_is_exact_with_a_flown_controller(env_id, kw, options):
 
 
 def test_save_restore_is_exact_through_a_rope_pull():
-    rope = pytest.importorskip("rotorlab.sim.disturbances.rope_pull")
-    env = _quiet("rotorlab/PitchRig-v0", task="regulation", disturbances=[rope.RopePull(t_pull_s=0.6, ramp_s=0.3)])
+    env = _quiet("rotorlab/PitchRig-v0", task="regulation", disturbances=[RopePull(t_pull_s=0.6, ramp_s=0.3)])
     env.reset(seed=0)
     acts = np.full((90, 1), 2.0 / 30.0)  # 2 % of command
     _rollout(env, acts[:20])

@@ -10,6 +10,7 @@ import pytest
 
 from rotorlab.cli import main
 from rotorlab.errors import ConfigError
+from rotorlab.sim.disturbances.rope_pull import RopePull
 from rotorlab.sim.log import RunLog
 from rotorlab.sim.poses import PoseTrack
 from rotorlab.sim.rerun_log import THRUST_ARROW_M_PER_N, check_rrd_path, record_run
@@ -136,9 +137,7 @@ def test_view_makes_a_recording_from_a_plain_run_folder(tmp_path, capsys):
 
 
 def test_rope_is_recorded_as_a_line_between_its_sites(tmp_path):
-    rope_mod = pytest.importorskip("rotorlab.sim.disturbances.rope_pull")
-
-    sim = Simulator("pitch-rig", "anteos-p2a2", disturbances=[rope_mod.RopePull(t_pull_s=0.1, ramp_s=0.2)])
+    sim = Simulator("pitch-rig", "anteos-p2a2", disturbances=[RopePull(t_pull_s=0.1, ramp_s=0.2)])
     track, log = PoseTrack(sim, 20), RunLog({"theta": "deg"}, 20)
     tip = sim.model.site("vehicle/arm_front_tip").id
     for _ in range(20):
