@@ -41,7 +41,7 @@ class Scene:
     rig_axis: str | None  # "pitch" / "roll" on a rig
     stop_deg: float | None  # rig stops
     thrust_actuators: np.ndarray  # actuator ids, rotor order
-    aero_actuators: dict  # "inflow" / "hx" / "hy" -> actuator ids, rotor order
+    aero_actuators: dict  # "inflow" / "hx" / "hy" (and "tilt_x" / "tilt_y" for hingeless hubs) -> actuator ids, rotor order
     has_anchor: bool = False
     #: rotor-inertia reaction actuators (variable RPM with rotor inertia), rotor order; they take the same
     #: ctrl as the thrust actuators (vehicles.build.add_rotor)
@@ -171,6 +171,11 @@ def build_scene(scene: str, vehicle, physics_dt_s: float = PHYSICS_DT_S, edit=No
     thrust = np.array([model.actuator(f"{PREFIX}thrust{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}thrust{i}")])
     aero = {k: np.array([model.actuator(f"{PREFIX}{k}{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}{k}{i}")])
             for k in ("inflow", "hx", "hy")}
+    # the hingeless hubs' disc-tilt dampers (vehicles.build); a rigid-propeller vehicle has none (no key)
+    for ax in "xy":
+        tilt = [model.actuator(f"{PREFIX}tilt{i}_{ax}").id for i in range(1, 5) if _has(model, f"{PREFIX}tilt{i}_{ax}")]
+        if tilt:
+            aero[f"tilt_{ax}"] = np.array(tilt, dtype=int)
     spinup = np.array([model.actuator(f"{PREFIX}spinup{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}spinup{i}")],
                       dtype=int)
     return Scene(scene, v, model, s, rig_axis, stop, thrust, aero, has_anchor, spinup)

@@ -173,6 +173,42 @@ def set_wind(opt_wind, ctrl, xmat, wind_world, aero: dict) -> None:
     ct[aero["hx"]], ct[aero["hy"]], ct[aero["inflow"]] = wb
 
 
+def air_rate_map(model, data, airframe: int, aero: dict):
+    """How the air's rigid rotation ``omega`` (rad/s, airframe axes) moves the air as each rotor aero actuator
+    (``Scene.aero_actuators``) measures it. A site actuator's velocity is ``gear . [v_site; omega_site]`` (site
+    axes, which the hubs keep along the airframe's to the flap angle); air turning rigidly about the CG moves at
+    ``omega x r_i`` with rotation ``omega`` at the site ``r_i``, so its row is ``J_i = r_i x gear_lin + gear_rot``.
+    Taken at the state in ``data`` (the hover keyframe). Returns ``(ids_add, J_add, ids_set, J_set)``: the
+    inflow and in-plane actuators, whose controls :func:`set_wind` has just written, and the disc-tilt dampers,
+    whose reference nothing else drives."""
+    R = data.xmat[airframe].reshape(3, 3)
+    add, set_ = ([], []), ([], [])
+    for key, ids in aero.items():
+        for i in np.arange(model.nu)[ids].reshape(-1):
+            site = model.actuator_trnid[i, 0]
+            r = R.T @ (data.site_xpos[site] - data.xpos[airframe])
+            g = model.actuator_gear[i]
+            dst = set_ if key.startswith("tilt") else add
+            dst[0].append(int(i))
+            dst[1].append(np.cross(r, g[:3]) + g[3:6])
+    return (np.array(add[0], dtype=int), np.array(add[1]).reshape(-1, 3),
+            np.array(set_[0], dtype=int), np.array(set_[1]).reshape(-1, 3))
+
+
+def set_air_rate(ctrl, xmat, air_rate_world, rate_map) -> None:
+    """The air's rotation (rad/s, world, z up; the turbulence's gust gradients) into the rotor aero actuators,
+    after :func:`set_wind`: each actuator's reference takes the rigidly rotating air's motion as that actuator
+    measures it (``rate_map``, :func:`air_rate_map`): the hubs' inflow and in-plane air velocities differ by
+    ``omega x r_i`` (the fore/aft thrust difference of a pitch gradient), and the disc-tilt dampers' reference
+    becomes the air's rotation (their torque ``D (omega_air - omega_disc)``: the blades' angle of attack changes
+    with the disc's rotation relative to the air, which is how gust gradients enter an aircraft's damping
+    derivatives). One simulation: ``ctrl (nu,)``, ``xmat (9,)`` of the airframe (None: unrotated)."""
+    wb = air_rate_world if xmat is None else np.reshape(xmat, (3, 3)).T @ air_rate_world
+    ids_add, J_add, ids_set, J_set = rate_map
+    ctrl[ids_add] += J_add @ wb
+    ctrl[ids_set] = J_set @ wb
+
+
 class Diverged(RotorlabError):
     """The run left the physically meaningful region (NaN, MuJoCo warning, rig stop, crash)."""
 
@@ -197,7 +233,7 @@ class Simulator:
     """
 
     #: Python-side state a snapshot must keep besides MuJoCo's full physics state (see the gym envs)
-    python_state_attrs = ("rng", "_noise", "commands_pct", "rotor_pct", "wind_world", "seed")
+    python_state_attrs = ("rng", "_noise", "commands_pct", "rotor_pct", "wind_world", "air_rate_world", "seed")
 
     def __init__(self, scene="pitch-rig", vehicle="anteos-p2a2", *, seed: int = 0, control_dt_s: float | None = None,
                  sensor_noise: bool = True, disturbances=()):
@@ -268,7 +304,12 @@ class Simulator:
         self._warnings = [(w, d.warning[w]) for w in DIVERGENCE_WARNINGS]
         self._gyro_scale = (FLU_TO_FRD * RAD2DEG).tolist()
         self.wind_world = np.zeros(3)
+        #: the air's rotation (rad/s, world, z up) this tick: the turbulence's gust gradients (:func:`set_air_rate`)
+        self.air_rate_world = np.zeros(3)
+        self._rotates_air = any(getattr(dist, "rotates_air", False) for dist in self.disturbances)
         self.reset(seed)
+        if self._rotates_air:
+            self._air_rate_map = air_rate_map(m, self.data, self._airframe, self.scene.aero_actuators)
 
     # ------------------------------------------------------------------ state
     def reset(self, seed: int | None = None) -> None:
@@ -291,6 +332,7 @@ class Simulator:
         self.commands_pct = np.array([self.vehicle.hover_collective_pct, 0.0, 0.0, 0.0])
         self.rotor_pct = tuple(self.mixer.mix(*self.commands_pct)[: self._n_thrust])
         self.wind_world[:] = 0.0
+        self.air_rate_world[:] = 0.0
         self._wind_v[:] = 0.0  # opt.wind lives in the model, which outlives a run
         for dist in self.disturbances:
             dist.reset(self, np.random.default_rng([self.seed, _stable_hash(dist.name)]))
@@ -351,11 +393,16 @@ class Simulator:
         if self.disturbances:
             self._xfrc_v[:] = 0.0
             self.wind_world[:] = 0.0
+            if self._rotates_air:
+                self.air_rate_world[:] = 0.0
             t = self.time
             for dist in self.disturbances:
                 dist.update(self, t)
             set_wind(self._wind_v, self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.wind_world,
                      self.aero_ids)
+            if self._rotates_air:
+                set_air_rate(self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.air_rate_world,
+                             self._air_rate_map)
             if regroup and self._update_stage < _STAGE_ACC:
                 if self._update_stage == _STAGE_VEL:
                     mujoco.mj_fwdVelocity(m, d)  # the passive forces (fuselage drag) under the new wind

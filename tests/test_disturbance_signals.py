@@ -1,5 +1,5 @@
-"""Disturbance signal generators: Dryden statistics against MIL-F-8785C formulas, 1-cosine gust shape,
-recirculation band and RMS."""
+"""Disturbance signal generators: Dryden statistics (gust velocities and gradients) against MIL-F-8785C
+formulas, 1-cosine gust shape, recirculation band and RMS."""
 
 import math
 
@@ -12,6 +12,7 @@ from rotorlab.errors import ConfigError
 from rotorlab.sim.disturbances import (
     DrydenTurbulence,
     RecirculationTorque,
+    dryden_psd_rates,
     dryden_psd_u,
     dryden_psd_v,
     low_altitude_scales,
@@ -84,6 +85,44 @@ def test_dryden_welch_psd_matches_formula():
         np.testing.assert_allclose(band_mean, 1.0, atol=4 * per_bin / math.sqrt((hi - lo) / 2))
     # and the bulk of the spectrum: the median ratio over all bins is within 2 %
     np.testing.assert_allclose(np.median(ratio, axis=0), 1.0, atol=0.02)
+
+
+def test_gust_gradient_psds_match_the_standard():
+    # hover-like: slow advection over a quadrotor's span (the P2-A2's 1.37 m at 2.5 m/s, 5 m up)
+    d = DrydenTurbulence(2.5, 5.0, seed=5)
+    uvw = d.generate(N, DT)
+    rates = d.generate_rates(uvw, DT, 1.37)
+    nseg = 4096
+    f, pxx = signal.welch(rates, fs=1 / DT, nperseg=nseg, axis=0)
+    # the formulas per Hz, two-sided folded to one-sided: 2 pi Phi(2 pi f); up to 5 Hz, where the record's
+    # sampling (Tustin gradients, aliasing of the 1/omega^2 tails) moves the PSD by < 3 %
+    sel = (f >= 8 / (nseg * DT)) & (f <= 5.0)
+    ratio = pxx[sel] / (2 * np.pi * d.psd_rates(2 * np.pi * f[sel], 1.37))
+    per_bin = math.sqrt(1.06 * nseg / (2 * N))
+    edges = np.unique(np.geomspace(1, ratio.shape[0], 7).astype(int))
+    edges[0] = 0
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        if hi - lo < 32:
+            continue
+        np.testing.assert_allclose(ratio[lo:hi].mean(axis=0), 1.0, atol=0.03 + 4 * per_bin / math.sqrt((hi - lo) / 2))
+    # the formulas themselves: q_g is the w record's gradient, r_g the v record's, p_g its own process
+    w = np.array([0.5, 3.0])
+    sig, L = d.sigma_mps, d.length_scales_m
+    b, V = 1.37, 2.5
+    np.testing.assert_allclose(dryden_psd_rates(w, sig, L, V, b)[:, 1],
+                               (w / V) ** 2 / (1 + (4 * b * w / (np.pi * V)) ** 2) * dryden_psd_v(w, sig[2], L[2], V))
+    np.testing.assert_allclose(dryden_psd_rates(w, sig, L, V, b)[:, 2],
+                               (w / V) ** 2 / (1 + (3 * b * w / (np.pi * V)) ** 2) * dryden_psd_v(w, sig[1], L[1], V))
+
+
+def test_gust_gradients_leave_the_velocity_record_as_it_was():
+    a = DrydenTurbulence(2.5, 5.0, seed=9).generate(500, DT)
+    d = DrydenTurbulence(2.5, 5.0, seed=9)
+    b = d.generate(500, DT)
+    d.generate_rates(b, DT, 1.0)
+    np.testing.assert_array_equal(a, b)
+    with pytest.raises(ConfigError, match="span_m"):
+        d.generate_rates(b, DT, 0.0)
 
 
 def test_dryden_is_seeded_and_needs_airspeed():

@@ -12,7 +12,7 @@ from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import build_scene
 from rotorlab.sim.disturbances import DrydenWind, InputDisturbanceStep, MeanWind, RecirculationMoment, RopePull
 from rotorlab.sim.runner import run_scenario
-from rotorlab.sim.simulator import Simulator, body_wind, set_wind
+from rotorlab.sim.simulator import Simulator, air_rate_map, body_wind, set_air_rate, set_wind
 from rotorlab.vehicles import load_vehicle, vehicle_path
 
 
@@ -167,6 +167,39 @@ def test_set_wind_of_one_simulation_writes_the_body_wind_of_many():
         assert np.array_equal(ctrl[[2, 3, 1]], wb) and np.array_equal(ctrl[[20, 21, 19]], wb)
     set_wind(opt, ctrl, None, wind[0], aero)  # no airframe: the wind unrotated
     assert np.array_equal(ctrl[[2, 3, 1]], wind[0])
+
+
+@pytest.mark.parametrize("vehicle", ["anteos-p2a2", "tuhh-quad"])
+def test_rotor_aerodynamics_see_rotation_relative_to_the_air(vehicle):
+    """set_air_rate (the turbulence's gust gradients): every rotor aero actuator (inflow, H-force with its
+    flapping moment, hub disc-tilt damping) acts on the motion relative to the air, so a vehicle turning with the
+    air feels none of the rotors' damping, and air turning round a still vehicle pushes it as hard as the damping
+    resists the opposite turn, at any attitude. The fuselage's own drag (MuJoCo's fluid model, not a rotor
+    actuator) is switched off: it sees the uniform wind only."""
+    sim = Simulator("free-flight", vehicle, sensor_noise=False)
+    m, d = sim.model, sim.data
+    m.opt.density = 0.0
+    rate_map = air_rate_map(m, d, sim._airframe, sim.scene.aero_actuators)
+    tilt = np.zeros(4)
+    mujoco.mju_axisAngle2Quat(tilt, np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2]), 0.35)
+
+    def rot_acc(body_rate, air_rate_body):
+        sim.reset(0)
+        d.qpos[3:7] = tilt
+        d.qvel[3:6] = body_rate  # the free joint's angular velocity is in the airframe's axes
+        mujoco.mj_forward(m, d)
+        R = d.xmat[sim._airframe].reshape(3, 3)
+        set_air_rate(d.ctrl, d.xmat[sim._airframe], R @ np.asarray(air_rate_body, float), rate_map)
+        mujoco.mj_forward(m, d)
+        return d.qacc[3:6].copy()
+
+    rest = rot_acc(np.zeros(3), np.zeros(3))
+    for w in ([0.4, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.3]):
+        w = np.array(w)
+        damped = rot_acc(w, np.zeros(3)) - rest
+        assert np.linalg.norm(damped) > 1e-3  # the rotors do damp this turn
+        np.testing.assert_allclose(rot_acc(w, w), rest, rtol=0, atol=1e-12 * np.abs(rest).max() + 1e-12)
+        np.testing.assert_allclose(rot_acc(np.zeros(3), w) - rest, -damped, rtol=1e-9, atol=1e-12)
 
 
 def test_cli_list_and_run(tmp_path, capsys):

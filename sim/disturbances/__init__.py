@@ -10,6 +10,7 @@ from rotorlab.sim.disturbances.base import Disturbance
 from rotorlab.sim.disturbances.cosine_gust import CosineGust
 from rotorlab.sim.disturbances.dryden import (
                                                DrydenTurbulence,
+                                               dryden_psd_rates,
                                                dryden_psd_u,
                                                dryden_psd_v,
                                                dryden_psd_w,
@@ -28,5 +29,5 @@ DISTURBANCES = {cls.name: cls for cls in (MeanWind, DrydenWind, CosineGust, Reci
                                              InputDisturbanceStep)}
 
 __all__ = ["DISTURBANCES", "Disturbance", "WindDisturbance", "SampledWind", "MeanWind", "DrydenWind", "CosineGust",
-           "RecirculationMoment", "RopePull", "InputDisturbanceStep", "DrydenTurbulence", "dryden_psd_u",
+           "RecirculationMoment", "RopePull", "InputDisturbanceStep", "DrydenTurbulence", "dryden_psd_rates", "dryden_psd_u",
            "dryden_psd_v", "dryden_psd_w", "low_altitude_scales", "one_minus_cosine", "RecirculationTorque"]

@@ -2,7 +2,7 @@
 
 A disturbance acts physically through the simulator at every control tick (before the batched physics
 steps): it may add to ``sim.wind_world`` (m/s, world z-up; drives fuselage drag through ``opt.wind`` and the
-rotors' inflow/H-force actuators), write wrenches into ``sim.data.xfrc_applied`` (cleared every tick), or move
+rotors' inflow/H-force actuators) and, declaring ``rotates_air``, to ``sim.air_rate_world`` (rad/s), write wrenches into ``sim.data.xfrc_applied`` (cleared every tick), or move
 mocap bodies it added to the model in :meth:`edit`. Its ground truth is logged through :meth:`values`.
 """
 
@@ -28,6 +28,8 @@ class Disturbance:
     #: recomputes the stages from there on (:meth:`rotorlab.sim.simulator.Simulator.tick`); an understated stage
     #: would leave stale forces in the first physics step of a tick.
     stage: mujoco.mjtStage = mujoco.mjtStage.mjSTAGE_POS
+    #: it adds the air's rotation (rad/s, world) to ``sim.air_rate_world`` (turbulence gust gradients)
+    rotates_air: bool = False
 
     def check_scene(self, scene: str) -> None:
         """Raise a clear error when the scene cannot host this disturbance."""

@@ -23,6 +23,18 @@ Discretisation is exact for white-noise input (not a zero-order hold of a sample
 exponential), so the sampled sequence has exactly the covariance of the continuous process at the sample times
 (variance ``sigma^2``, PSD the aliased continuous one). Each realisation is generated with
 ``scipy.signal.lfilter`` on independent Gaussian channels, after a burn-in so it starts stationary.
+
+Gust gradients (MIL-F-8785C 3.7.3.2; Madden, "Verifying implementation of the Dryden turbulence model and
+MIL-F-8785 gust gradient", NASA Langley): the turbulence's rotation over a span ``b``, the air-relative
+rotational rates ``p_g, q_g, r_g`` (rad/s) an aircraft flies in besides the gust velocities,
+
+    Phi_p(omega) = sigma_w^2 / (V L_w) 0.8 (pi L_w / (4 b))^(1/3) / (1 + (4 b omega / (pi V))^2)
+    Phi_q(omega) = (omega / V)^2 / (1 + (4 b omega / (pi V))^2) Phi_w(omega)
+    Phi_r(omega) = (omega / V)^2 / (1 + (3 b omega / (pi V))^2) Phi_v(omega)
+
+``q_g`` and ``r_g`` are the gradients of the ``w`` and ``v`` records (filters ``(s / V) / (1 + (4 b / (pi V)) s)``
+and ``(s / V) / (1 + (3 b / (pi V)) s)`` on them, Tustin at the record's sample time: their corners sit far below
+its Nyquist frequency); ``p_g`` is its own first-order process, discretised exactly like the velocities.
 """
 
 from __future__ import annotations
@@ -64,6 +76,17 @@ def dryden_psd_v(omega, sigma, L, V):
 
 
 dryden_psd_w = dryden_psd_v
+
+
+def dryden_psd_rates(omega, sigma_uvw, L_uvw, V, span_m):
+    """One-sided PSDs of the gust gradients ``(p_g, q_g, r_g)``, (rad/s)^2 per rad/s, shape ``(len(omega), 3)``
+    (MIL-F-8785C; ``span_m`` the span the gradient is taken over)."""
+    w = np.asarray(omega, dtype=float)
+    sw, Lw, b = float(sigma_uvw[2]), float(L_uvw[2]), float(span_m)
+    p = sw ** 2 / (V * Lw) * 0.8 * (math.pi * Lw / (4.0 * b)) ** (1.0 / 3.0) / (1.0 + (4.0 * b * w / (math.pi * V)) ** 2)
+    q = (w / V) ** 2 / (1.0 + (4.0 * b * w / (math.pi * V)) ** 2) * dryden_psd_w(w, sw, Lw, V)
+    r = (w / V) ** 2 / (1.0 + (3.0 * b * w / (math.pi * V)) ** 2) * dryden_psd_v(w, sigma_uvw[1], L_uvw[1], V)
+    return np.column_stack([p, q, r])
 
 
 def _filter_ss(kind: str, sigma: float, L: float, V: float):
@@ -150,4 +173,32 @@ class DrydenTurbulence:
                 num, den = signal.ss2tf(Ad, G[:, [c]], C, np.zeros((1, 1)))
                 y += signal.lfilter(num[0], den, e[:, c])
             out[:, j] = y[n_burn:]
+        return out
+
+    def psd_rates(self, omega, span_m: float):
+        """One-sided PSDs of ``(p_g, q_g, r_g)`` over ``span_m``, (rad/s)^2 per rad/s, ``(len(omega), 3)``."""
+        return dryden_psd_rates(omega, self.sigma_mps, self.length_scales_m, self.V_mps, span_m)
+
+    def generate_rates(self, uvw, dt: float, span_m: float) -> np.ndarray:
+        """Gust gradients ``(p_g, q_g, r_g)`` in rad/s, shape ``(n, 3)``, that go with the velocity record ``uvw``
+        (:meth:`generate`'s output, same ``dt``) over the span ``span_m``. ``p_g`` draws its noise from this
+        generator's stream after the velocities, so a seed still gives the velocity record it always gave."""
+        if not span_m > 0:
+            raise ConfigError(field="span_m", expected="the span the gust gradient is taken over, > 0 m", got=span_m)
+        uvw = np.asarray(uvw, dtype=float)
+        n, V, b = uvw.shape[0], self.V_mps, float(span_m)
+        sw, Lw = self.sigma_mps[2], self.length_scales_m[2]
+        out = np.empty((n, 3))
+        # p_g: K / (1 + T s) with pi Phi_p(0) = K^2 (the module's unit-intensity noise convention, Phi = |H|^2 / pi)
+        T = 4.0 * b / (math.pi * V)
+        K = math.sqrt(math.pi * sw ** 2 / (V * Lw) * 0.8 * (math.pi * Lw / (4.0 * b)) ** (1.0 / 3.0))
+        Ad, Qd = exact_noise_discretisation(np.array([[-1.0 / T]]), np.array([[1.0]]), dt)
+        n_burn = int(math.ceil(10.0 * T / dt))
+        e = self.rng.standard_normal(n + n_burn) * math.sqrt(Qd[0, 0])
+        out[:, 0] = (K / T) * signal.lfilter([0.0, 1.0], [1.0, -Ad[0, 0]], e)[n_burn:]
+        for j, (src, Tg) in ((1, (2, 4.0 * b / (math.pi * V))), (2, (1, 3.0 * b / (math.pi * V)))):
+            num, den, _ = signal.cont2discrete(([1.0 / V, 0.0], [Tg, 1.0]), dt, method="bilinear")
+            # start the filter in the steady state of the record's first sample (a gradient of a constant is 0)
+            zi = signal.lfilter_zi(num.ravel(), den) * uvw[0, src]
+            out[:, j], _ = signal.lfilter(num.ravel(), den, uvw[:, src], zi=zi)
         return out

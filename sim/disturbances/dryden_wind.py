@@ -2,8 +2,10 @@
 
 The gust velocities come from :class:`rotorlab.sim.disturbances.dryden.DrydenTurbulence` seeded with this
 disturbance's own generator; ``u`` is along the mean wind (the direction the air moves), ``v`` horizontal to its
-right, ``w`` down. The record is drawn once at reset for the whole run, so a seed gives the same gusts
-whatever else the run contains.
+right, ``w`` down, with the standard's gust gradients ``p_g, q_g, r_g`` over the vehicle's span: the air's
+rotation, which the rotors feel through their inflow and disc-tilt damping
+(:func:`rotorlab.sim.simulator.set_air_rate`). The record is drawn once at reset for the whole run, so a seed
+gives the same gusts whatever else the run contains.
 """
 
 from __future__ import annotations
@@ -11,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from rotorlab.sim.disturbances.dryden import DrydenTurbulence
-from rotorlab.sim.disturbances.mean_wind import SampledWind, toward_ned
+from rotorlab.sim.frames import RAD2DEG
+from rotorlab.sim.disturbances.mean_wind import _NED_TO_ZUP, WIND_COLUMNS, SampledWind, toward_ned
 
 
 def turbulence_axes_ned(from_deg: float) -> np.ndarray:
@@ -39,6 +42,9 @@ class DrydenWind(SampledWind):
     """
 
     name = "dryden"
+    rotates_air = True
+    #: the total wind (:class:`WindDisturbance`) and this record's gust gradients, NED axes
+    columns = {**WIND_COLUMNS, "gust_p": "deg/s", "gust_q": "deg/s", "gust_r": "deg/s"}
 
     def __init__(self, mean_speed_mps: float, altitude_m: float, duration_s: float, from_deg: float = 0.0,
                  sigma_mps=None):
@@ -51,11 +57,35 @@ class DrydenWind(SampledWind):
         self.sigma_mps = sigma_mps
         self._axes = turbulence_axes_ned(from_deg)
 
+    def reset(self, sim, rng) -> None:
+        """Draw the record (:class:`SampledWind`) with the gust gradients over the vehicle's span, tip to tip
+        ``2 (arm + rotor radius)`` (the standard's ``b``: the size over which the air's rotation is felt)."""
+        v = sim.vehicle
+        self.span_m = 2.0 * (v.arm_m + v.rotor.radius_m)
+        super().reset(sim, rng)
+
+    def update(self, sim, t: float) -> None:
+        k = self._index(t)
+        sim.wind_world += self._w_zup[k]
+        sim.air_rate_world += self._rate_zup[k]
+
+    def values(self, sim) -> dict:
+        out = super().values(sim)
+        p, q, r = (self._rate_ned[self._index(sim.time)] * RAD2DEG).tolist()
+        out["gust_p"], out["gust_q"], out["gust_r"] = p, q, r
+        return out
+
     def generator(self, rng) -> DrydenTurbulence:
         return DrydenTurbulence(self.mean_speed_mps, self.altitude_m, self.sigma_mps, rng=rng)
 
     def record_ned(self, rng, n: int, dt: float) -> np.ndarray:
-        return self.generator(rng).generate(n, dt) @ self._axes.T
+        """The gust velocities (NED); the gust gradients ``p_g, q_g, r_g`` over :attr:`span_m` that go with them
+        are kept for :meth:`update` in the same turbulence axes."""
+        gen = self.generator(rng)
+        uvw = gen.generate(n, dt)
+        self._rate_ned = gen.generate_rates(uvw, dt, self.span_m) @ self._axes.T
+        self._rate_zup = self._rate_ned * _NED_TO_ZUP
+        return uvw @ self._axes.T
 
 
 __all__ = ["DrydenWind", "turbulence_axes_ned"]
