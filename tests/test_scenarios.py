@@ -78,7 +78,10 @@ def test_hover_gain_switch_lowers_high_frequency_command():
     before, after = r.metrics["before_switch"], r.metrics["after_switch"]
     # the published flight-test finding: the switch to the optimal gains lowers the high-frequency command
     assert after["pitch"]["control"]["hf_power"] < 0.5 * before["pitch"]["control"]["hf_power"]
-    assert before["pitch"]["mean_ref_deg"] < -1.0  # headwind: nose into the wind to hold position
+    # headwind: nose into the wind to hold position. The rotors' H-force alone needs atan(4 x 0.0892 N/(m/s) x
+    # 2.5 m/s / (5 kg g)) = 1.04 deg (fuselage drag adds to it); the 8 s mean scatters by about +-0.3 deg with the
+    # seed's turbulence (-0.9 to -1.4 deg over seeds 0-3)
+    assert before["pitch"]["mean_ref_deg"] < -0.5
 
 
 def test_missing_switch_gains_are_named():
