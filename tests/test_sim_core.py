@@ -106,10 +106,13 @@ def _plain_mujoco_tick(sim) -> None:
     m, d = sim.model, sim.data
     d.xfrc_applied[:] = 0.0
     sim.wind_world[:] = 0.0
+    sim.air_rate_world[:] = 0.0
     for dist in sim.disturbances:
         dist.update(sim, sim.time)
-    set_wind(m.opt.wind, d.ctrl, d.xmat[sim._airframe] if sim._airframe >= 0 else None, sim.wind_world,
-             sim.aero_ids)
+    xmat = d.xmat[sim._airframe] if sim._airframe >= 0 else None
+    set_wind(m.opt.wind, d.ctrl, xmat, sim.wind_world, sim.aero_ids)
+    if any(dist.rotates_air for dist in sim.disturbances):
+        set_air_rate(d.ctrl, xmat, sim.air_rate_world, sim._air_rate_map)
     mujoco.mj_step(m, d, nstep=sim.n_substeps)
     mujoco.mj_forward(m, d)
 

@@ -2,8 +2,9 @@
 
 A disturbance acts physically through the simulator at every control tick (before the batched physics
 steps): it may add to ``sim.wind_world`` (m/s, world z-up; drives fuselage drag through ``opt.wind`` and the
-rotors' inflow/H-force actuators) and, declaring ``rotates_air``, to ``sim.air_rate_world`` (rad/s), write wrenches into ``sim.data.xfrc_applied`` (cleared every tick), or move
-mocap bodies it added to the model in :meth:`edit`. Its ground truth is logged through :meth:`values`.
+rotors' inflow/H-force actuators) and, declaring ``rotates_air``, to ``sim.air_rate_world`` (rad/s), write
+wrenches into ``sim.data.xfrc_applied`` (cleared every tick), or move mocap bodies it added to the model in
+:meth:`edit`. Its ground truth is logged through :meth:`values`.
 """
 
 from __future__ import annotations

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from rotorlab.sim.disturbances.dryden import DrydenTurbulence
-from rotorlab.sim.frames import RAD2DEG
 from rotorlab.sim.disturbances.mean_wind import _NED_TO_ZUP, WIND_COLUMNS, SampledWind, toward_ned
+from rotorlab.sim.frames import RAD2DEG
 
 
 def turbulence_axes_ned(from_deg: float) -> np.ndarray:
