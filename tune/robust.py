@@ -311,8 +311,9 @@ def h_lim_analysis(W_delta, V_nom, G=None, rel_tol: float = 1e-3, s_tol: float =
     Parameters
     ----------
     W_delta, V_nom : as :func:`h_lim` (SISO).
-    G : nominal plant (SISO, the time domain of ``V_nom``), optional: with it the result tells whether
-        ``V_nom(0) = -1/G(0)`` (integral action) and the sensitivity ``|1 + V_nom G|`` at the peak.
+    G : nominal plant as the loop sees it, input delay included (SISO, the time domain of ``V_nom``), optional:
+        with it the result tells whether ``V_nom(0) = -1/G(0)`` (integral action) and the sensitivity
+        ``|1 + V_nom G|`` at the peak.
     rel_tol : the peak counts as "at DC" when ``|W_delta V_nom|(0) >= (1 - rel_tol)`` times the norm.
     s_tol : the bound is controller-independent when the sensitivity at the peak is at most this: the gains
         then move h_lim by about that fraction at most (0.1: -20 dB of sensitivity, within 10 %). A peak just

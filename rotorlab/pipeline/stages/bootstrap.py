@@ -43,10 +43,10 @@ def run(ctx: StageContext) -> dict:
         raise PipelineError("the bootstrap needs the PBSID model: " + ident["skipped"].get("pbsid", "missing"))
     st = ident["models"]["pbsid"]["settings"]
     w = bode_grid(N_BODE)
-    br, W, Wmag, spread = _bootstrap_wdelta(ctx, ctx.run.experiment_log("id"), st, ctx.seed, w, "testbed",
-                                            "bootstrap")
+    id_log = ctx.run.experiment_log("id")
+    br, W, Wmag, spread = _bootstrap_wdelta(ctx, id_log, st, ctx.seed, w, "testbed", "bootstrap")
     flight = _own(ctx, w, "pbsid-flight", "flight", "flight", 1)
-    pair = _own(ctx, w, "pbsid-testbed-n2", "id", "testbed-n2", 2)
+    pair = _own(ctx, w, "pbsid-testbed-n2", "id", "testbed-n2", 2, log=id_log)
     band = br.band(w, BAND_LEVEL)
     poles_c = br.poles_continuous()
     stack = {k: np.stack([np.asarray(getattr(m.sys, k), float) for m in br.models]) for k in "ABCD"}
@@ -60,18 +60,19 @@ def run(ctx: StageContext) -> dict:
             **({"flight": flight} if flight else {}), **({"testbed_n2": pair} if pair else {})}
 
 
-def _own(ctx: StageContext, w, model: str, log_name: str, which: str, stream: int) -> dict | None:
+def _own(ctx: StageContext, w, model: str, log_name: str, which: str, stream: int, log=None) -> dict | None:
     """Bootstrap of a further PBSID model of the identify stage on its own record, with the settings it was
     identified with, and its ``W_delta`` (``w_delta-{which}.json``): the in-flight model on the flight record
     (ref. 000 gives in-flight h_lim from the flight model's uncertainty, not the test-bed's) and the second-order
-    test-bed model it is paired with. None when the identify stage has no such model."""
+    test-bed model it is paired with (``log``: the record when the caller has read it already). None when the
+    identify stage has no such model."""
     if not ctx.run.model_path(model).exists() or not ctx.run.experiment_log_path(log_name).exists():
         return None
     st = ctx.run.identified(model).settings
     # an independent seed stream: these innovations share nothing with the nominal bootstrap's
     seed = int(np.random.SeedSequence([ctx.seed, stream]).generate_state(1)[0])
-    _, _, Wmag, spread = _bootstrap_wdelta(ctx, ctx.run.experiment_log(log_name), st, seed, w, which,
-                                           f"{which} bootstrap")
+    _, _, Wmag, spread = _bootstrap_wdelta(ctx, ctx.run.experiment_log(log_name) if log is None else log, st, seed,
+                                           w, which, f"{which} bootstrap")
     np.savez(ctx.work / f"replicas-{which}.npz", w_rad_s=w, spread=spread)
     return {"model": model, "order": int(st["order"]), "w_delta_peak": float(Wmag.max()),
             "w_delta_dc": float(Wmag[0])}

@@ -84,7 +84,8 @@ def run(ctx: StageContext) -> dict:
         ax = gs["pitch"]
         res["step"][name] = step_metrics(nominal, ax)
         V = control_sensitivity_cascade(mc_plant(G_mc), ax, DT_S)
-        hl = h_lim_analysis(W, V, G_mc.sys)
+        # the loop's sensitivity at the peak needs the plant as the loop sees it: behind its input delay
+        hl = h_lim_analysis(W, V, with_io_delay(G_mc.sys, G_mc.delay * DT_S))
         res["h_lim"][name], res["h_lim_peak_rad_s"][name] = hl.h_lim, hl.peak_rad_s
         res["h_lim_low_frequency_bound"][name] = hl.low_frequency_bound
         builder = functools.partial(cascade_mc, axis_gains=ax, delay_s=G_mc.delay * DT_S, dt=DT_S)
@@ -134,27 +135,32 @@ def _transfer(ctx: StageContext, sets, nominal):
         return {}, {}, {}
     flight = ctx.run.plant("pbsid-flight", "flight")
     Wf = ctx.run.w_delta("flight") if ctx.run.w_delta_path("flight").exists() else None
-    transfer, hl, peak = {}, {}, {}
+    transfer = {}
     for name, gs in sets.items():
         a, b = step_metrics(nominal, gs["pitch"])["iae"], step_metrics(flight, gs["pitch"])["iae"]
         transfer[name] = {"iae_testbed": a, "iae_flight": b,
                           "loss_pct": 100.0 * (b - a) / a if math.isfinite(a) and math.isfinite(b) else None}
-        if Wf is None:
-            continue
-        r, err = _h_lim_or_error(Wf, flight, gs["pitch"])
-        hl[name], peak[name] = (r.h_lim, r.peak_rad_s) if r is not None else (None, None)
-        if err:
-            transfer[name]["flight_loop"] = err
+    if Wf is None:
+        return transfer, {}, {}
+    hl, peak, errors = _h_lim_per_set(Wf, flight, sets)
+    for name, err in errors.items():
+        transfer[name]["flight_loop"] = err
     return transfer, hl, peak
 
 
-def _h_lim_or_error(W, plant, axis_gains):
-    """``(h_lim analysis, None)`` of the cascade with ``axis_gains`` around ``plant``, or ``(None, reason)`` when
-    the set does not stabilise that model: no robustness to speak of."""
-    try:
-        return h_lim_analysis(W, control_sensitivity_cascade(plant, axis_gains, DT_S), plant.G), None
-    except DataError as exc:
-        return None, str(exc)
+def _h_lim_per_set(W, plant, sets):
+    """h_lim of every gain set's cascade around ``plant`` (:class:`PlantModel`) with ``W``: ``({set: h_lim},
+    {set: peak rad/s}, {set: reason})``, None and the reason where a set does not stabilise that model (no
+    robustness to speak of)."""
+    hl, peak, errors = {}, {}, {}
+    for name, gs in sets.items():
+        try:
+            r = h_lim_analysis(W, control_sensitivity_cascade(plant, gs["pitch"], DT_S),
+                               with_io_delay(plant.G, plant.delay_s))
+            hl[name], peak[name] = r.h_lim, r.peak_rad_s
+        except DataError as exc:
+            hl[name], peak[name], errors[name] = None, None, str(exc)
+    return hl, peak, errors
 
 
 def _h_lim_testbed_n2(ctx: StageContext, sets) -> dict:
@@ -164,12 +170,7 @@ def _h_lim_testbed_n2(ctx: StageContext, sets) -> dict:
     model cannot carry, so the in-flight value is compared like with like here. Empty without that model."""
     if not ctx.run.model_path("pbsid-testbed-n2").exists() or not ctx.run.w_delta_path("testbed-n2").exists():
         return {}
-    tb, W2 = ctx.run.plant("pbsid-testbed-n2", "testbed-n2"), ctx.run.w_delta("testbed-n2")
-    out = {}
-    for name, gs in sets.items():
-        r, _ = _h_lim_or_error(W2, tb, gs["pitch"])
-        out[name] = r.h_lim if r is not None else None
-    return out
+    return _h_lim_per_set(ctx.run.w_delta("testbed-n2"), ctx.run.plant("pbsid-testbed-n2", "testbed-n2"), sets)[0]
 
 
 def _tuhh_designs(nominal, std_axis) -> dict:
