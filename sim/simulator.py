@@ -12,7 +12,7 @@ import math
 import mujoco
 import numpy as np
 
-from rotorlab.errors import RotorlabError
+from rotorlab.errors import ConfigError, RotorlabError
 from rotorlab.scenes import PREFIX, Scene, build_scene
 from rotorlab.sim.control.mixer import Mixer
 from rotorlab.sim.disturbances.mean_wind import WindDisturbance
@@ -309,6 +309,10 @@ class Simulator:
         self._rotates_air = any(getattr(dist, "rotates_air", False) for dist in self.disturbances)
         self.reset(seed)
         if self._rotates_air:
+            if self._airframe < 0:
+                raise ConfigError(f"the air's rotation (turbulence gust gradients) acts on a vehicle's rotors; the "
+                                  f"{self.scene.name} scene has no airframe", field="disturbances",
+                                  expected="a rig or free flight", got=self.scene.name)
             self._air_rate_map = air_rate_map(m, self.data, self._airframe, self.scene.aero_actuators)
 
     # ------------------------------------------------------------------ state

@@ -90,10 +90,9 @@ def test_dryden_welch_psd_matches_formula():
 def test_gust_gradient_psds_match_the_standard():
     # hover-like: slow advection over a quadrotor's span (the P2-A2's 1.37 m at 2.5 m/s, 5 m up)
     d = DrydenTurbulence(2.5, 5.0, seed=5)
-    uvw = d.generate(N, DT)
-    rates = d.generate_rates(uvw, DT, 1.37)
+    _, rot = d.generate_with_rates(N, DT, 1.37)
     nseg = 4096
-    f, pxx = signal.welch(rates, fs=1 / DT, nperseg=nseg, axis=0)
+    f, pxx = signal.welch(rot, fs=1 / DT, nperseg=nseg, axis=0)
     # the formulas per Hz, two-sided folded to one-sided: 2 pi Phi(2 pi f); up to 5 Hz, where the record's
     # sampling (Tustin gradients, aliasing of the 1/omega^2 tails) moves the PSD by < 3 %
     sel = (f >= 8 / (nseg * DT)) & (f <= 5.0)
@@ -105,24 +104,36 @@ def test_gust_gradient_psds_match_the_standard():
         if hi - lo < 32:
             continue
         np.testing.assert_allclose(ratio[lo:hi].mean(axis=0), 1.0, atol=0.03 + 4 * per_bin / math.sqrt((hi - lo) / 2))
-    # the formulas themselves: q_g is the w record's gradient, r_g the v record's, p_g its own process
-    w = np.array([0.5, 3.0])
+    # the standard's own numbers at one frequency: Phi_q(3 rad/s) for sigma_w, L_w at 5 m, b = 1.37 m, V = 2.5 m/s
     sig, L = d.sigma_mps, d.length_scales_m
-    b, V = 1.37, 2.5
-    np.testing.assert_allclose(dryden_psd_rates(w, sig, L, V, b)[:, 1],
-                               (w / V) ** 2 / (1 + (4 * b * w / (np.pi * V)) ** 2) * dryden_psd_v(w, sig[2], L[2], V))
-    np.testing.assert_allclose(dryden_psd_rates(w, sig, L, V, b)[:, 2],
-                               (w / V) ** 2 / (1 + (3 * b * w / (np.pi * V)) ** 2) * dryden_psd_v(w, sig[1], L[1], V))
+    x = L[2] * 3.0 / 2.5
+    phi_w = sig[2] ** 2 * L[2] / (np.pi * 2.5) * (1 + 3 * x * x) / (1 + x * x) ** 2
+    assert dryden_psd_rates([3.0], sig, L, 2.5, 1.37)[0, 1] == pytest.approx(
+        (3.0 / 2.5) ** 2 / (1 + (4 * 1.37 * 3.0 / (np.pi * 2.5)) ** 2) * phi_w, rel=1e-12)
+
+
+def test_air_rotation_is_the_frozen_fields_rigid_rotation():
+    """Air advected along +u: the field at x = +dx is the one that passed the origin dx / V earlier, so the
+    rigid rotation about v is -dw/dx and about w is +dv/dx. The span filter keeps the sign and the low-frequency
+    size (correlation near 1 with the finite difference seen through the same filter's low-pass part)."""
+    V, b = 2.5, 1.37
+    d = DrydenTurbulence(V, 5.0, seed=4)
+    uvw, rot = d.generate_with_rates(20000, DT, b)
+    dx = V * DT  # one sample of advection
+    grad = (uvw[:-1] - uvw[1:]) / dx  # d/dx of the frozen field, per component
+    for j, src, sign, Tg in ((1, 2, -1.0, 4 * b / (np.pi * V)), (2, 1, +1.0, 3 * b / (np.pi * V))):
+        num, den, _ = signal.cont2discrete(([1.0], [Tg, 1.0]), DT, method="bilinear")
+        ref = signal.lfilter(num.ravel(), den, sign * grad[:, src])
+        c = np.corrcoef(ref[500:], rot[501:, j])[0, 1]
+        assert c > 0.98, (j, c)
 
 
 def test_gust_gradients_leave_the_velocity_record_as_it_was():
     a = DrydenTurbulence(2.5, 5.0, seed=9).generate(500, DT)
-    d = DrydenTurbulence(2.5, 5.0, seed=9)
-    b = d.generate(500, DT)
-    d.generate_rates(b, DT, 1.0)
+    b, _ = DrydenTurbulence(2.5, 5.0, seed=9).generate_with_rates(500, DT, 1.0)
     np.testing.assert_array_equal(a, b)
     with pytest.raises(ConfigError, match="span_m"):
-        d.generate_rates(b, DT, 0.0)
+        DrydenTurbulence(2.5, 5.0, seed=9).generate_with_rates(500, DT, 0.0)
 
 
 def test_dryden_is_seeded_and_needs_airspeed():

@@ -69,10 +69,18 @@ def test_logged_dryden_wind_is_the_generator_output_for_the_seed():
     r = run_scenario("hover", "anteos-p2a2", gains=STD, seed=seed, duration_s=dur, options={"switch_s": None})
     rng = np.random.default_rng([seed, _stable_hash("dryden")])
     n = r.log.n
-    gen = DrydenTurbulence(2.5, HOVER_HEIGHT_M, rng=rng).generate(int(np.ceil(dur / 0.02)) + 1, 0.02)[:n]
-    expected = gen @ turbulence_axes_ned(0.0).T + np.array([-2.5, 0.0, 0.0])  # plus the mean headwind (NED)
+    v = load_vehicle("anteos-p2a2")
+    span_m = 2.0 * (v.arm_m + v.rotor.radius_m)  # tip to tip: the span the air's rotation is felt over
+    gen, rot = DrydenTurbulence(2.5, HOVER_HEIGHT_M, rng=rng).generate_with_rates(int(np.ceil(dur / 0.02)) + 1, 0.02,
+                                                                                  span_m)
+    axes = turbulence_axes_ned(0.0)
+    expected = gen[:n] @ axes.T + np.array([-2.5, 0.0, 0.0])  # plus the mean headwind (NED)
     logged = np.column_stack([r.log["wind_u"], r.log["wind_v"], r.log["wind_w"]])
     np.testing.assert_allclose(logged, expected, rtol=0, atol=1e-12)
+    # the air's rotation, in deg/s about north, east, down
+    logged = np.column_stack([r.log["air_rate_n"], r.log["air_rate_e"], r.log["air_rate_d"]])
+    np.testing.assert_allclose(logged, np.degrees(rot[:n] @ axes.T), rtol=0, atol=1e-12)
+    assert r.log.units["air_rate_e"] == "deg/s"
 
 
 def test_logged_wind_is_total_wind_ned_bit_for_bit():
@@ -84,8 +92,8 @@ def test_logged_wind_is_total_wind_ned_bit_for_bit():
         logged = np.array([winds[0].values(sim)[k] for k in ("wind_u", "wind_v", "wind_w")])
         total = total_wind_ned(winds, sim.time)
         assert np.array_equal(logged, total) and np.array_equal(np.signbit(logged), np.signbit(total))
-        # the others log their own ground truth only: the Dryden record's gust gradients
-        assert set(winds[1].values(sim)) == {"gust_p", "gust_q", "gust_r"} and winds[2].values(sim) == {}
+        # the others log their own ground truth only: the Dryden record's air rotation
+        assert set(winds[1].values(sim)) == {"air_rate_n", "air_rate_e", "air_rate_d"} and winds[2].values(sim) == {}
         sim.tick()
 
 

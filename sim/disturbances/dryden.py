@@ -32,9 +32,10 @@ rotational rates ``p_g, q_g, r_g`` (rad/s) an aircraft flies in besides the gust
     Phi_q(omega) = (omega / V)^2 / (1 + (4 b omega / (pi V))^2) Phi_w(omega)
     Phi_r(omega) = (omega / V)^2 / (1 + (3 b omega / (pi V))^2) Phi_v(omega)
 
-``q_g`` and ``r_g`` are the gradients of the ``w`` and ``v`` records (filters ``(s / V) / (1 + (4 b / (pi V)) s)``
-and ``(s / V) / (1 + (3 b / (pi V)) s)`` on them, Tustin at the record's sample time: their corners sit far below
-its Nyquist frequency); ``p_g`` is its own first-order process, discretised exactly like the velocities.
+The rotation about ``v`` and ``w`` comes from the ``w`` and ``v`` records (filters ``(s / V) / (1 + (4 b / (pi V))
+s)`` and ``-(s / V) / (1 + (3 b / (pi V)) s)``: the frozen field's rigid rotation, Tustin at the record's sample time,
+their corners far below its Nyquist frequency); about ``u`` it is its own first-order process, discretised exactly
+like the velocities.
 """
 
 from __future__ import annotations
@@ -156,10 +157,14 @@ class DrydenTurbulence:
 
     def generate(self, n: int, dt: float) -> np.ndarray:
         """``n`` samples every ``dt`` s of (u, v, w) gust velocity, m/s, shape ``(n, 3)``."""
+        return np.column_stack([y[k:] for y, k in self._velocities(n, dt)])
+
+    def _velocities(self, n: int, dt: float):
+        """Per component (u, v, w): the record with its burn-in in front, and the burn-in's length (samples)."""
         n = int(n)
         if n < 1 or not dt > 0:
             raise ConfigError(field="n/dt", expected="n >= 1 and dt > 0", got=(n, dt))
-        out = np.empty((n, 3))
+        out = []
         for j, kind in enumerate("uvw"):
             A, B, C = _filter_ss("u" if kind == "u" else "v", self.sigma_mps[j], self.length_scales_m[j], self.V_mps)
             Ad, Qd = exact_noise_discretisation(A, B, dt)
@@ -172,33 +177,37 @@ class DrydenTurbulence:
                 # x_{k+1} = Ad x_k + G e_k, y_k = C x_k: each noise channel through C (zI - Ad)^-1 G[:, c]
                 num, den = signal.ss2tf(Ad, G[:, [c]], C, np.zeros((1, 1)))
                 y += signal.lfilter(num[0], den, e[:, c])
-            out[:, j] = y[n_burn:]
+            out.append((y, n_burn))
         return out
 
     def psd_rates(self, omega, span_m: float):
         """One-sided PSDs of ``(p_g, q_g, r_g)`` over ``span_m``, (rad/s)^2 per rad/s, ``(len(omega), 3)``."""
         return dryden_psd_rates(omega, self.sigma_mps, self.length_scales_m, self.V_mps, span_m)
 
-    def generate_rates(self, uvw, dt: float, span_m: float) -> np.ndarray:
-        """Gust gradients ``(p_g, q_g, r_g)`` in rad/s, shape ``(n, 3)``, that go with the velocity record ``uvw``
-        (:meth:`generate`'s output, same ``dt``) over the span ``span_m``. ``p_g`` draws its noise from this
-        generator's stream after the velocities, so a seed still gives the velocity record it always gave."""
+    def generate_with_rates(self, n: int, dt: float, span_m: float):
+        """``(uvw, rot)``: :meth:`generate`'s gust velocities (m/s, ``(n, 3)``, the same record for the same
+        seed) and the air's rotation that goes with them over the span ``span_m`` (rad/s, ``(n, 3)``, about the
+        u, v, w axes), with the standard's gust-gradient spectra: about ``u`` its own process (``Phi_p``), about
+        ``v`` and ``w`` the frozen field's rigid rotation ``-dw/dx = +(dw/dt) / V`` and ``dv/dx = -(dv/dt) / V``
+        (air advected along ``+u``), each seen through the span's averaging filter (``Phi_q``, ``Phi_r``). Every
+        component starts stationary: the gradients run over the velocities' burn-in, and the ``u`` rotation
+        draws its noise after the velocities' draws."""
         if not span_m > 0:
             raise ConfigError(field="span_m", expected="the span the gust gradient is taken over, > 0 m", got=span_m)
-        uvw = np.asarray(uvw, dtype=float)
-        n, V, b = uvw.shape[0], self.V_mps, float(span_m)
+        comps = self._velocities(n, dt)
+        n, V, b = int(n), self.V_mps, float(span_m)
         sw, Lw = self.sigma_mps[2], self.length_scales_m[2]
-        out = np.empty((n, 3))
+        rates = np.empty((n, 3))
         # p_g: K / (1 + T s) with pi Phi_p(0) = K^2 (the module's unit-intensity noise convention, Phi = |H|^2 / pi)
         T = 4.0 * b / (math.pi * V)
         K = math.sqrt(math.pi * sw ** 2 / (V * Lw) * 0.8 * (math.pi * Lw / (4.0 * b)) ** (1.0 / 3.0))
         Ad, Qd = exact_noise_discretisation(np.array([[-1.0 / T]]), np.array([[1.0]]), dt)
         n_burn = int(math.ceil(10.0 * T / dt))
         e = self.rng.standard_normal(n + n_burn) * math.sqrt(Qd[0, 0])
-        out[:, 0] = (K / T) * signal.lfilter([0.0, 1.0], [1.0, -Ad[0, 0]], e)[n_burn:]
-        for j, (src, Tg) in ((1, (2, 4.0 * b / (math.pi * V))), (2, (1, 3.0 * b / (math.pi * V)))):
-            num, den, _ = signal.cont2discrete(([1.0 / V, 0.0], [Tg, 1.0]), dt, method="bilinear")
-            # start the filter in the steady state of the record's first sample (a gradient of a constant is 0)
-            zi = signal.lfilter_zi(num.ravel(), den) * uvw[0, src]
-            out[:, j], _ = signal.lfilter(num.ravel(), den, uvw[:, src], zi=zi)
-        return out
+        rates[:, 0] = (K / T) * signal.lfilter([0.0, 1.0], [1.0, -Ad[0, 0]], e)[n_burn:]
+        for j, src, Tg, sign in ((1, 2, 4.0 * b / (math.pi * V), 1.0), (2, 1, 3.0 * b / (math.pi * V), -1.0)):
+            y, k = comps[src]
+            num, den, _ = signal.cont2discrete(([sign / V, 0.0], [Tg, 1.0]), dt, method="bilinear")
+            # over the velocity's burn-in (>= 10 L/V, far longer than the gradient filter's Tg < 1 s)
+            rates[:, j] = signal.lfilter(num.ravel(), den, y)[k:]
+        return np.column_stack([y[k:] for y, k in comps]), rates

@@ -43,8 +43,8 @@ class DrydenWind(SampledWind):
 
     name = "dryden"
     rotates_air = True
-    #: the total wind (:class:`WindDisturbance`) and this record's gust gradients, NED axes
-    columns = {**WIND_COLUMNS, "gust_p": "deg/s", "gust_q": "deg/s", "gust_r": "deg/s"}
+    #: the total wind (:class:`WindDisturbance`) and this record's air rotation about north, east and down
+    columns = {**WIND_COLUMNS, "air_rate_n": "deg/s", "air_rate_e": "deg/s", "air_rate_d": "deg/s"}
 
     def __init__(self, mean_speed_mps: float, altitude_m: float, duration_s: float, from_deg: float = 0.0,
                  sigma_mps=None):
@@ -56,6 +56,7 @@ class DrydenWind(SampledWind):
         self.from_deg = float(from_deg)
         self.sigma_mps = sigma_mps
         self._axes = turbulence_axes_ned(from_deg)
+        self.span_m = None  # the vehicle's, at reset
 
     def reset(self, sim, rng) -> None:
         """Draw the record (:class:`SampledWind`) with the gust gradients over the vehicle's span, tip to tip
@@ -71,19 +72,18 @@ class DrydenWind(SampledWind):
 
     def values(self, sim) -> dict:
         out = super().values(sim)
-        p, q, r = (self._rate_ned[self._index(sim.time)] * RAD2DEG).tolist()
-        out["gust_p"], out["gust_q"], out["gust_r"] = p, q, r
+        n, e, d = (self._rate_ned[self._index(sim.time)] * RAD2DEG).tolist()
+        out["air_rate_n"], out["air_rate_e"], out["air_rate_d"] = n, e, d
         return out
 
     def generator(self, rng) -> DrydenTurbulence:
         return DrydenTurbulence(self.mean_speed_mps, self.altitude_m, self.sigma_mps, rng=rng)
 
     def record_ned(self, rng, n: int, dt: float) -> np.ndarray:
-        """The gust velocities (NED); the gust gradients ``p_g, q_g, r_g`` over :attr:`span_m` that go with them
-        are kept for :meth:`update` in the same turbulence axes."""
-        gen = self.generator(rng)
-        uvw = gen.generate(n, dt)
-        self._rate_ned = gen.generate_rates(uvw, dt, self.span_m) @ self._axes.T
+        """The gust velocities (NED); the air's rotation over :attr:`span_m` that goes with them (the standard's
+        gust gradients) is kept for :meth:`update` in the same axes."""
+        uvw, pqr = self.generator(rng).generate_with_rates(n, dt, self.span_m)
+        self._rate_ned = pqr @ self._axes.T
         self._rate_zup = self._rate_ned * _NED_TO_ZUP
         return uvw @ self._axes.T
 

@@ -22,7 +22,8 @@ Options
 ``turbulence`` : bool     Dryden turbulence on (default True), gust gradients included: ref. 000 puts the
                           wider in-flight uncertainty band down to "the presence of wind gust" (less repeatable
                           conditions than the test-bed); the gradients' pitch moment on the rotors' damping is
-                          the in-band part of it (the gust velocities' power lies below 0.1 rad/s in hover)
+                          the in-band part of it (in hover at 2.5 m/s most of the horizontal gusts' power lies below 0.1
+                          rad/s, and the vertical gust reaches the pitch axis only through the collective)
 """
 
 from __future__ import annotations
