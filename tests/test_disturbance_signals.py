@@ -66,6 +66,18 @@ def test_dryden_variance_and_autocorrelation():
         np.testing.assert_allclose(rho, expect, atol=0.03)
 
 
+def _assert_band_means_near_one(ratio, nseg: int, n_edges: int, bias: float = 0.0):
+    """Welch-to-formula PSD ratios (bins x components) averaged over log-spaced bands of >= 32 bins are 1 within
+    4 sigma (+ ``bias``): ~2 N / nseg Hann segments (50 % overlap) give a per-bin relative s.d. of
+    sqrt(1.06 nseg / (2 N)), and adjacent Hann bins correlate (count half of them)."""
+    per_bin = math.sqrt(1.06 * nseg / (2 * N))
+    edges = np.unique(np.geomspace(1, ratio.shape[0], n_edges).astype(int))
+    edges[0] = 0
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        if hi - lo >= 32:
+            np.testing.assert_allclose(ratio[lo:hi].mean(axis=0), 1.0, atol=bias + 4 * per_bin / math.sqrt((hi - lo) / 2))
+
+
 def test_dryden_welch_psd_matches_formula():
     d = DrydenTurbulence(12.0, 20.0, wind20_mps=8.0, seed=11)  # standard scales at 20 m
     x = d.generate(N, DT)
@@ -73,16 +85,7 @@ def test_dryden_welch_psd_matches_formula():
     f, pxx = signal.welch(x, fs=1 / DT, nperseg=nseg, axis=0)
     sel = slice(4, None)  # the first bins are biased by the window's resolution on the steep low end
     ratio = pxx[sel] / _aliased_one_sided_psd_per_hz(d, f[sel], 1 / DT)
-    # Welch with ~2 N / nseg Hann segments (50 % overlap): per-bin relative s.d. ~ sqrt(1.06 nseg / (2 N)) ~ 6.5 %.
-    # Averages over bands of >= 32 bins (adjacent Hann bins correlate: count half) stay within 4 sigma.
-    per_bin = math.sqrt(1.06 * nseg / (2 * N))
-    edges = np.unique(np.geomspace(1, ratio.shape[0], 9).astype(int))
-    edges[0] = 0
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        if hi - lo < 32:
-            continue
-        band_mean = ratio[lo:hi].mean(axis=0)
-        np.testing.assert_allclose(band_mean, 1.0, atol=4 * per_bin / math.sqrt((hi - lo) / 2))
+    _assert_band_means_near_one(ratio, nseg, n_edges=9)
     # and the bulk of the spectrum: the median ratio over all bins is within 2 %
     np.testing.assert_allclose(np.median(ratio, axis=0), 1.0, atol=0.02)
 
@@ -97,13 +100,7 @@ def test_gust_gradient_psds_match_the_standard():
     # sampling (Tustin gradients, aliasing of the 1/omega^2 tails) moves the PSD by < 3 %
     sel = (f >= 8 / (nseg * DT)) & (f <= 5.0)
     ratio = pxx[sel] / (2 * np.pi * d.psd_rates(2 * np.pi * f[sel], 1.37))
-    per_bin = math.sqrt(1.06 * nseg / (2 * N))
-    edges = np.unique(np.geomspace(1, ratio.shape[0], 7).astype(int))
-    edges[0] = 0
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        if hi - lo < 32:
-            continue
-        np.testing.assert_allclose(ratio[lo:hi].mean(axis=0), 1.0, atol=0.03 + 4 * per_bin / math.sqrt((hi - lo) / 2))
+    _assert_band_means_near_one(ratio, nseg, n_edges=7, bias=0.03)
     # the standard's own numbers at one frequency: Phi_q(3 rad/s) for sigma_w, L_w at 5 m, b = 1.37 m, V = 2.5 m/s
     sig, L = d.sigma_mps, d.length_scales_m
     x = L[2] * 3.0 / 2.5
