@@ -85,7 +85,7 @@ def run(ctx: StageContext) -> dict:
         res["step"][name] = step_metrics(nominal, ax)
         V = control_sensitivity_cascade(mc_plant(G_mc), ax, DT_S)
         # the loop's sensitivity at the peak needs the plant as the loop sees it: behind its input delay
-        hl = h_lim_analysis(W, V, with_io_delay(G_mc.sys, G_mc.delay * DT_S))
+        hl = h_lim_analysis(W, V, G_mc.with_delay())
         res["h_lim"][name], res["h_lim_peak_rad_s"][name] = hl.h_lim, hl.peak_rad_s
         res["h_lim_low_frequency_bound"][name] = hl.low_frequency_bound
         builder = functools.partial(cascade_mc, axis_gains=ax, delay_s=G_mc.delay * DT_S, dt=DT_S)
