@@ -202,8 +202,9 @@ def set_air_rate(ctrl, xmat, air_rate_world, rate_map) -> None:
     ``omega x r_i`` (the fore/aft thrust difference of a pitch gradient), and the disc-tilt dampers' reference
     becomes the air's rotation (their torque ``D (omega_air - omega_disc)``: the blades' angle of attack changes
     with the disc's rotation relative to the air, which is how gust gradients enter an aircraft's damping
-    derivatives). One simulation: ``ctrl (nu,)``, ``xmat (9,)`` of the airframe (None: unrotated)."""
-    wb = air_rate_world if xmat is None else np.reshape(xmat, (3, 3)).T @ air_rate_world
+    derivatives). One simulation: ``ctrl (nu,)``, ``xmat (9,)`` of the airframe (the simulator refuses the air's
+    rotation on a scene without one)."""
+    wb = np.reshape(xmat, (3, 3)).T @ air_rate_world
     ids_add, J_add, ids_set, J_set = rate_map
     ctrl[ids_add] += J_add @ wb
     ctrl[ids_set] = J_set @ wb
@@ -306,7 +307,7 @@ class Simulator:
         self.wind_world = np.zeros(3)
         #: the air's rotation (rad/s, world, z up) this tick: the turbulence's gust gradients (:func:`set_air_rate`)
         self.air_rate_world = np.zeros(3)
-        self._rotates_air = any(getattr(dist, "rotates_air", False) for dist in self.disturbances)
+        self._rotates_air = any(dist.rotates_air for dist in self.disturbances)
         self.reset(seed)
         if self._rotates_air:
             if self._airframe < 0:
@@ -404,9 +405,8 @@ class Simulator:
                 dist.update(self, t)
             set_wind(self._wind_v, self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.wind_world,
                      self.aero_ids)
-            if self._rotates_air:
-                set_air_rate(self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.air_rate_world,
-                             self._air_rate_map)
+            if self._rotates_air:  # only with an airframe (__init__)
+                set_air_rate(self._ctrl_v, self._af_xmat, self.air_rate_world, self._air_rate_map)
             if regroup and self._update_stage < _STAGE_ACC:
                 if self._update_stage == _STAGE_VEL:
                     mujoco.mj_fwdVelocity(m, d)  # the passive forces (fuselage drag) under the new wind
