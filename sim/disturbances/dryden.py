@@ -196,16 +196,15 @@ class DrydenTurbulence:
             raise ConfigError(field="span_m", expected="the span the gust gradient is taken over, > 0 m", got=span_m)
         comps = self._velocities(n, dt)
         n, V, b = int(n), self.V_mps, float(span_m)
-        sw, Lw = self.sigma_mps[2], self.length_scales_m[2]
         rates = np.empty((n, 3))
-        # p_g: K / (1 + T s) with pi Phi_p(0) = K^2 (the module's unit-intensity noise convention, Phi = |H|^2 / pi)
+        # about u: K / (1 + T s) with pi Phi_p(0) = K^2 (the module's unit-intensity noise convention, Phi = |H|^2 / pi)
         T = 4.0 * b / (math.pi * V)
-        K = math.sqrt(math.pi * sw ** 2 / (V * Lw) * 0.8 * (math.pi * Lw / (4.0 * b)) ** (1.0 / 3.0))
+        K = math.sqrt(math.pi * self.psd_rates([0.0], b)[0, 0])
         Ad, Qd = exact_noise_discretisation(np.array([[-1.0 / T]]), np.array([[1.0]]), dt)
         n_burn = int(math.ceil(10.0 * T / dt))
         e = self.rng.standard_normal(n + n_burn) * math.sqrt(Qd[0, 0])
         rates[:, 0] = (K / T) * signal.lfilter([0.0, 1.0], [1.0, -Ad[0, 0]], e)[n_burn:]
-        for j, src, Tg, sign in ((1, 2, 4.0 * b / (math.pi * V), 1.0), (2, 1, 3.0 * b / (math.pi * V), -1.0)):
+        for j, src, Tg, sign in ((1, 2, T, 1.0), (2, 1, 3.0 * b / (math.pi * V), -1.0)):
             y, k = comps[src]
             num, den, _ = signal.cont2discrete(([sign / V, 0.0], [Tg, 1.0]), dt, method="bilinear")
             # over the velocity's burn-in (>= 10 L/V, far longer than the gradient filter's Tg < 1 s)
