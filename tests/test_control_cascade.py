@@ -132,16 +132,41 @@ def test_heading_wrap_takes_the_short_way():
     assert r_ref == pytest.approx(2.0 * -15.0)
 
 
-def test_attitude_schedule_switches_gains_bumplessly():
+def test_attitude_schedule_switches_gains_bumplessly_through_the_rate_loop():
     att = AttitudeController(_gs("standard", STD), DT, LIMITS, schedule=[(1.0, _gs("optimal", OPT_TB))])
-    us = []
+    us, q_refs = [], []
     for k in range(100):
-        us.append(att.step(k * DT, 0.0, 3.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0)[1])  # held inputs
+        out = att.step(k * DT, 0.0, 3.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0)  # held inputs, pitch error 2 deg
+        us.append(out[1])
+        q_refs.append(out[4])
     assert att.gains.name == "optimal"
     assert att.pitch.inner.gains == OPT_TB.inner
-    # held inputs: the switch at k = 50 keeps the output trajectory smooth (only the new integral slope)
-    d = np.diff(us)
-    assert abs(d[49]) < 2 * max(abs(d[48]), abs(d[50])) + 1e-9
+    # the outer PD has no integral to hold the difference: its proportional term switches with the gains
+    assert q_refs[50] - q_refs[49] == pytest.approx((OPT_TB.outer.kp - STD.outer.kp) * 2.0, abs=1e-9)
+    # the rate loop integrates: for held inputs it continues exactly (the old PID carrying on: its integral's
+    # slope), so the command moves by that plus the new rate loop's answer to the rate set-point step only
+    i = OPT_TB.inner
+    old_next = us[49] + STD.inner.ki * DT * q_refs[49]  # rate 0: the error is the rate set-point
+    assert us[50] - old_next == pytest.approx((i.kp * i.b + i.kd / i.tf * i.c) * (q_refs[50] - q_refs[49]),
+                                              abs=1e-9)
+
+
+def test_in_flight_gain_switch_leaves_no_angle_offset():
+    # pitch test-bed model under a constant input disturbance, a 2 deg set-point step and the switch in the
+    # middle of the transient: the inner PID's integral removes the disturbance whichever gains fly, so the
+    # angle must settle on the set-point after the switch as before it. A switch that parked the outer PD's
+    # proportional difference in a constant offset would hold (kp_old - kp_new) / kp_new x the error at the
+    # switch (0.70 x 1.5 deg here: 1.04 deg) for ever.
+    att = AttitudeController(_gs("standard", STD), DT, LIMITS, schedule=[(0.3, _gs("optimal", OPT_TB))])
+    plant, err_at_switch = _Plant(), None
+    for k in range(3000):
+        theta, q = plant.out()
+        if k == 15:
+            err_at_switch = 2.0 - theta
+        u = att.step(k * DT, 0.0, 2.0, 0.0, 0.0, theta, 0.0, 0.0, q, 0.0)[1]
+        plant.step(u + 1.5)
+    assert abs(err_at_switch) > 0.2, err_at_switch
+    assert plant.out()[0] == pytest.approx(2.0, abs=1e-6)
 
 
 # ---------------------------------------------------------------------------------------------- mixer

@@ -121,13 +121,18 @@ class DiscretePID:
         self._r, self._y = r0, y0
 
     def set_gains(self, gains: LoopGains) -> None:
-        """Switch gains in flight without a bump.
+        """Switch gains in flight, without a bump where the new loop integrates.
 
-        The output the old controller would give next tick if the inputs stayed at the last ``(r, y)`` is
-        computed; then the derivative state is set so the new derivative term continues the old one, and the
-        integral absorbs the remaining difference of the proportional terms. For constant inputs the output
-        is therefore exactly continuous; with moving inputs the jump is only the new-vs-old gain difference
-        applied to the change of the inputs over one tick.
+        The derivative state is set so the new derivative term continues the old one. With integral action
+        (``ki > 0``) the integral absorbs the difference of the proportional terms: the output the old
+        controller would give next tick if the inputs stayed at the last ``(r, y)`` is kept, so for constant
+        inputs the output is exactly continuous, with moving inputs the jump is only the new-vs-old gain
+        difference applied to the change of the inputs over one tick, and the integration then takes the
+        absorbed difference out. Without integral action (the cascade's outer PD) the integral state is a
+        constant offset that nothing ever takes out: absorbing the difference there would leave the loop
+        holding ``(kp_old - kp_new) (b r - y)`` at the switch as a permanent bias (an angle offset of that over
+        ``kp_new`` once the rate loop settles), so the offset is kept as it was and the proportional term
+        switches with the gains, a bump of ``(kp_new - kp_old) (b r - y)``.
         """
         r, y = self._r, self._y
         ud_old = (self.kd * (self.c * r - y) - self.xd) / self.tf if self.kd != 0.0 else 0.0
@@ -139,7 +144,8 @@ class DiscretePID:
         else:
             self.xd = 0.0
             ud_new = 0.0
-        self.xi = u_next - self.kp * (self.b * r - y) - ud_new
+        if self._kidt != 0.0:
+            self.xi = u_next - self.kp * (self.b * r - y) - ud_new
 
     def step(self, r: float, y: float, u_ff: float = 0.0) -> float:
         """One sample: set-point ``r``, measurement ``y``, additive feed-forward ``u_ff`` (applied before the
