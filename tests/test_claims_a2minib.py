@@ -29,6 +29,14 @@ def test_a2minib_claims_hold_on_the_twin(summary):
     rms = "after_switch.pitch.rms_error_deg"
     assert m("hover", rms, "tuned") < m("hover", rms, "standard")
     held = {c["claim"]: c["holds"] for c in summary["claims"]}
+    # "non significant overshoot increment" read on the paper's own simulation: its optimum on its test-bed model
+    # (18.4 % -> 32.6 %); the standard set's closed loop there is the twin's noise-free 0.3 deg step within a point
+    pub = summary["step_published"]
+    assert pub["standard"]["overshoot_pct"] == pytest.approx(m("setpoint", lin + "overshoot_pct", "standard"), abs=1.0)
+    allowance = pub["optimal"]["overshoot_pct"] - pub["standard"]["overshoot_pct"]
+    assert 10.0 < allowance < 20.0
+    assert m("setpoint", lin + "overshoot_pct", "tuned") <= m("setpoint", lin + "overshoot_pct", "standard") + allowance
+    assert held["response time slightly lower with no significant overshoot increase"] is True
     assert held["reduced settling time, less oscillation on the set-point"] is True
     assert held["in-flight switch: high-frequency command oscillation lowered, pitch oscillation around the "
                 "set-point reduced"] is True

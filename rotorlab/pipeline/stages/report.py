@@ -55,8 +55,9 @@ def compare_sets(validation: dict, a: str, b: str) -> dict:
 
 # ref. 000's claims per vehicle, each judged by the metric that matches its wording. A check is
 # (scenario, metric, test): "lower" tuned < standard; "similar" tuned <= 1.1 x standard; "not_higher"
-# tuned <= standard; "overshoot" at most 5 points more overshoot than standard; "switch" the tuned hover run's
-# value after the in-flight switch below its value before it (same run, standard gains before the switch).
+# tuned <= standard; "overshoot" no more overshoot over standard than the published optimum adds on the published
+# test-bed model (:func:`overshoot_allowance`); "switch" the tuned hover run's value after the in-flight switch
+# below its value before it (same run, standard gains before the switch).
 CLAIMS = {
     "anteos-p2a2": [
         ("optimal tuning guarantees angular drift reduction (gust)",
@@ -85,7 +86,16 @@ CLAIMS = {
     ],
 }
 _TESTS = {"lower": ("<", lambda t, s: t < s), "similar": ("<= 1.1 x", lambda t, s: t <= 1.1 * s),
-          "not_higher": ("<=", lambda t, s: t <= s), "overshoot": ("<= 5 points +", lambda t, s: t <= s + 5.0)}
+          "not_higher": ("<=", lambda t, s: t <= s)}
+
+
+def overshoot_allowance(summary: dict, opt: str | None) -> float | None:
+    """What ref. 000 calls a "non significant overshoot increment", in points: its optimum's overshoot over the
+    standard gains' in its own set-point simulation, i.e. on its test-bed model without noise (the tune stage's
+    ``step_published``; A2-MINI/B: 18.4 % -> 32.6 %, +14.2 points). None without a published model."""
+    sp = summary.get("step_published") or {}
+    a, b = (sp.get(n, {}).get("overshoot_pct") for n in ("standard", opt))
+    return b - a if a is not None and b is not None and math.isfinite(a) and math.isfinite(b) else None
 
 
 def published_optimum(sets) -> str | None:
@@ -100,7 +110,7 @@ def _size(x) -> float:
     return math.inf if x is None else abs(x)  # deviations may be signed: compare sizes
 
 
-def _check(v: dict, sc: str, key: str, test: str, tuned: str, opt: str | None) -> dict:
+def _check(v: dict, sc: str, key: str, test: str, tuned: str, opt: str | None, allowance: float | None) -> dict:
     sets = v.get(sc, {})
     if test == "switch":
         m = sets.get(tuned, {})
@@ -112,8 +122,16 @@ def _check(v: dict, sc: str, key: str, test: str, tuned: str, opt: str | None) -
     if "standard" not in sets or tuned not in sets or key not in sets["standard"] and key not in sets[tuned]:
         return {"metric": f"{sc}: {key}", "holds": None, "evidence": f"not evaluated: no {sc} '{key}' for both sets"}
     a, b = _size(sets["standard"].get(key)), _size(sets[tuned].get(key))
-    sym, ok = _TESTS[test]
-    row = {"metric": f"{sc}: {key}", "holds": bool(ok(b, a)), "test": f"{tuned} {sym} standard", "standard": a,
+    if test == "overshoot":
+        if allowance is None:
+            return {"metric": f"{sc}: {key}", "holds": None,
+                    "evidence": "not evaluated: no published model to read 'non significant' on"}
+        sym, holds = f"<= {allowance:.1f} points (the published optimum's on the published model) +", \
+            b <= a + allowance
+    else:
+        sym, ok = _TESTS[test]
+        holds = ok(b, a)
+    row = {"metric": f"{sc}: {key}", "holds": bool(holds), "test": f"{tuned} {sym} standard", "standard": a,
            tuned: b}
     ev = f"{sc} {key}: standard {a:.4g} -> {tuned} {b:.4g}"
     if opt and opt in sets:
@@ -121,6 +139,8 @@ def _check(v: dict, sc: str, key: str, test: str, tuned: str, opt: str | None) -
         row["published_optimum"] = c
         row["vs_published_pct"] = 100.0 * (b - c) / c if c and math.isfinite(b) and math.isfinite(c) else None
         ev += f" (published {opt} {c:.4g})"
+    if test == "overshoot":
+        ev += f"; allowed: standard + {allowance:.1f} points, the published optimum's increment on the published model"
     row["evidence"] = ev
     return row
 
@@ -132,7 +152,7 @@ def claims(summary: dict, tuned: str) -> list[dict]:
     opt = published_optimum(summary.get("gains", {}))
     rows = []
     for what, checks in CLAIMS.get(summary.get("vehicle"), []):
-        res = [_check(v, sc, key, test, tuned, opt) for sc, key, test in checks]
+        res = [_check(v, sc, key, test, tuned, opt, overshoot_allowance(summary, opt)) for sc, key, test in checks]
         known = [r["holds"] for r in res if r["holds"] is not None]
         rows.append({"claim": what, "holds": (all(known) if known else None), "checks": res,
                      "evidence": "; ".join(r["evidence"] for r in res)})
@@ -345,6 +365,7 @@ def write_report(ctx: StageContext) -> dict:
         "excitation": exp.get("excitation", {}),
         "h_lim": tune["h_lim"], "h_lim_peak_rad_s": tune.get("h_lim_peak_rad_s", {}),
         "h_lim_low_frequency_bound": tune.get("h_lim_low_frequency_bound", {}), "step": tune["step"],
+        "step_published": tune.get("step_published", {}),
         "h_lim_flight": tune.get("h_lim_flight", {}), "h_lim_flight_peak_rad_s": tune.get("h_lim_flight_peak_rad_s", {}),
         "h_lim_testbed_n2": tune.get("h_lim_testbed_n2", {}),
         "montecarlo": tune["montecarlo"],

@@ -20,9 +20,16 @@ from rotorlab.pipeline.runfolder import Stage, StageContext
 from rotorlab.pipeline.settings import DT_S
 from rotorlab.stepresponse import step_metrics as response_metrics
 from rotorlab.tune import evaluate, h_lim_analysis, hinf_mixed_sensitivity, load_spec, tune_cascade
-from rotorlab.tune.cascade import cascade_mc, cascade_plant, closed_cascade, control_sensitivity_cascade
+from rotorlab.tune.cascade import (
+    cascade_mc,
+    cascade_plant,
+    closed_cascade,
+    control_sensitivity_cascade,
+    plant_model,
+)
 from rotorlab.tune.montecarlo import MARGINAL_TOL, montecarlo, worst_case_delta
 from rotorlab.tune.spec import builtin_specs
+from rotorlab.vehicles import load_vehicle
 
 __all__ = ["STAGE", "step_metrics", "HINF_DT_S"]
 
@@ -77,6 +84,12 @@ def run(ctx: StageContext) -> dict:
         res["goals"] = {}
         res["designs"] = _tuhh_designs(nominal, sets["standard"]["pitch"])
     res["gains"] = {k: gains_table(gs) for k, gs in sets.items()}
+    # the paper's own ruler for its set-point claims: the published sets on the published test-bed model, the
+    # noise-free linear simulation its "simulation results (set-point tracking)" show
+    pub = load_vehicle(ctx.vehicle).published.get("testbed")
+    if pub is not None:
+        pub_model = plant_model(pub.num, pub.den, pub.delay_s, "published test-bed")
+        res["step_published"] = {k: step_metrics(pub_model, gs["pitch"]) for k, gs in sets.items() if k != "tuned"}
     res["h_lim"], res["h_lim_peak_rad_s"], res["h_lim_low_frequency_bound"] = {}, {}, {}
     res["montecarlo"], res["step"] = {}, {}
     mc_arrays = {}
