@@ -222,6 +222,10 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
     it = tqdm(range(n_ticks), desc="simulating", unit="tick", disable=not progress, leave=False)
     drive = setup.drive
     noise_on, noise = setup.noise_on, sim.sensor_noise
+    # one signal dict for the whole run: measured into, flown by the flight software, completed with the truth
+    # and the scenario's columns and logged, tick after tick, so a tick builds and copies no dict (every writer
+    # sets the same keys every tick, so nothing of an earlier tick is logged)
+    sig = {}
     for _ in it:
         t = sim.time
         if noise_on is not None:
@@ -230,19 +234,17 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
             log.append(t, drive(sim, t))
             sim.tick(controls_only=True)
             continue
-        meas = sim.measure()
-        out = fs.step(t, meas)
-        sim.set_rotor_commands(out["rotor_pct"])
-        out["phi_true"], out["theta_true"], _ = sim.true_attitude_deg()
+        sim.set_rotor_commands(fs.step_signals(t, sim.measure(sig)))
+        sig["phi_true"], sig["theta_true"], _ = sim.true_attitude_deg()
         p_true, q_true, _ = sim.true_rates_dps()
-        out["p_true"], out["q_true"] = p_true, q_true
-        out["p_dot"], out["q_dot"] = (p_true - p_prev) / dt, (q_true - q_prev) / dt
+        sig["p_true"], sig["q_true"] = p_true, q_true
+        sig["p_dot"], sig["q_dot"] = (p_true - p_prev) / dt, (q_true - q_prev) / dt
         p_prev, q_prev = p_true, q_true
         if on_tick is not None:
-            out.update(on_tick(sim, out))
+            sig.update(on_tick(sim, sig))
         for dist in sim.disturbances:
-            out.update(dist.values(sim))
-        log.append(t, out)
+            sig.update(dist.values(sim))
+        log.append(t, sig)
         if poses is not None:
             poses.record(sim)
         sim.tick(controls_only=True)  # the loop writes nothing into MuJoCo between ticks but the rotor commands

@@ -440,13 +440,13 @@ class Simulator:
         return self.stops.reason(self._qpos_v, self._af_xmat, self._af_xpos, self.data.time)
 
     # ------------------------------------------------------------------ sensing
-    def measure(self) -> dict:
+    def measure(self, out: dict | None = None) -> dict:
         """IMU readings at this tick in flight-software units (:data:`rotorlab.sim.sensors.IMU`), with seeded noise
         and bias when enabled: ``phi, theta, psi`` (deg), ``p, q, r`` (deg/s), ``ax, ay, az`` (m/s^2, body FRD),
         and for outer loops ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s, NED) from the position sensor (truth,
-        noise-free)."""
+        noise-free). Into ``out`` when given (the runner's signal dict), else into a new dict; returns it."""
         # one draw per tick for all noisy channels keeps the stream (and so the log) seed-determined
-        out = self.imu.sample(self._sd_v, self._noise if self.sensor_noise else None)
+        out = self.imu.sample(self._sd_v, self._noise if self.sensor_noise else None, out)
         if self._free:
             # the free joint's qpos/qvel are the airframe origin's world position and velocity (NED: y, z flip)
             x, y, z = self._pos_v.tolist()
@@ -461,7 +461,8 @@ class Simulator:
     def true_rates_dps(self) -> tuple[float, float, float]:
         """Airframe (not IMU) body rates p, q, r in deg/s (FRD)."""
         if self._free:  # the free joint's angular velocity is already in the airframe (FLU) frame
-            return tuple([w * k for w, k in zip(self._omega_v.tolist(), self._gyro_scale)])
+            (wx, wy, wz), (kx, ky, kz) = self._omega_v.tolist(), self._gyro_scale
+            return wx * kx, wy * ky, wz * kz
         v = np.zeros(6)
         mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self._airframe, v, 1)
         p, q, r = v[:3].tolist()

@@ -223,26 +223,32 @@ class FlightSoftware:
 
     def step(self, t: float, meas: dict) -> dict:
         """One tick at time ``t`` (s). Returns a new dict of commands, set-points and internal signals."""
-        # written for speed (it runs every tick): locals, one clip per command, no per-tick allocation but the
-        # returned dict
+        sig = self._sig
+        sig.update(meas)
+        self.step_signals(t, sig)
+        return dict(sig)
+
+    def step_signals(self, t: float, sig: dict):
+        """:meth:`step` in place: ``sig`` holds this tick's measurements and takes the commands, set-points and
+        internal signals. The runner keeps one such dict for a whole run (it measures into it, adds the truth
+        columns and logs it), so a tick builds and copies no dict. Returns the rotor commands."""
+        # written for speed (it runs every tick): locals, one clip per command, no per-tick allocation
         if self._engage:
-            self._bumpless(meas)
+            self._bumpless(sig)
         refs = self._ref
         if self.reference is not None:
             refs = dict(refs)
             refs.update(self.reference(t))
         exc = self.excitation
-        sig = self._sig
-        sig.update(meas)
-        phi, theta, psi = meas["phi"], meas["theta"], meas["psi"]
-        p, q, r = meas["p"], meas["q"], meas["r"]
+        phi, theta, psi = sig["phi"], sig["theta"], sig["psi"]
+        p, q, r = sig["p"], sig["q"], sig["r"]
         mode = self.mode
 
         # outer loops
         if mode == "position":
-            x_ref = self._setpoint("x_ref", refs, meas.get("x"), t)
-            y_ref = self._setpoint("y_ref", refs, meas.get("y"), t)
-            phi_ref, theta_ref = self.position.step(x_ref, y_ref, meas["x"], meas["y"], meas["vx"], meas["vy"], psi)
+            x_ref = self._setpoint("x_ref", refs, sig.get("x"), t)
+            y_ref = self._setpoint("y_ref", refs, sig.get("y"), t)
+            phi_ref, theta_ref = self.position.step(x_ref, y_ref, sig["x"], sig["y"], sig["vx"], sig["vy"], psi)
             if exc:
                 phi_ref += self._exc("phi_ref", t)
                 theta_ref += self._exc("theta_ref", t)
@@ -260,8 +266,8 @@ class FlightSoftware:
             if self.n is not None:
                 raise ConfigError("a position or altitude set-point needs the flight software of one simulation",
                                   field="reference", expected="attitude set-points and commands", got=sorted(refs))
-            z_ref = self._setpoint("z_ref", refs, meas.get("z"), t)
-            u_col = self.altitude.step(-z_ref, -meas["z"], -meas["vz"], phi, theta)
+            z_ref = self._setpoint("z_ref", refs, sig.get("z"), t)
+            u_col = self.altitude.step(-z_ref, -sig["z"], -sig["vz"], phi, theta)
             sig["z_ref"] = z_ref
         else:
             u_col = refs.get("u_col", self.position_gains.hover_collective_pct)
@@ -321,8 +327,8 @@ class FlightSoftware:
             u_yaw = np.clip(u_yaw, -ylim, ylim)
             u_col = np.clip(u_col, lo, hi)
         sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"] = u_col, u_lat, u_lon, u_yaw
-        sig["rotor_pct"] = self._mix(u_col, u_lat, u_lon, u_yaw)
+        sig["rotor_pct"] = rotor = self._mix(u_col, u_lat, u_lon, u_yaw)
         last = self._last
         last["u_lat"], last["u_lon"], last["u_yaw"] = u_lat, u_lon, u_yaw
         self._k += 1
-        return dict(sig)
+        return rotor

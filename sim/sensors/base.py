@@ -13,6 +13,8 @@ a reading is ``value + (bias + std * z)`` (:class:`NoiseStream`).
 
 from __future__ import annotations
 
+from operator import add
+
 import mujoco
 import numpy as np
 
@@ -58,9 +60,9 @@ class Sensor:
         simulation)."""
         raise NotImplementedError
 
-    def read_floats(self, x: list) -> list:
-        """:meth:`read` of one simulation, from the MjData field as a list of floats to a list of floats, the
-        same values bit for bit (tests/test_sensors.py). The simulator samples through here every tick: a sensor
+    def read_floats(self, x: list):
+        """:meth:`read` of one simulation, from the MjData field as a list of floats to a list or tuple of floats,
+        the same values bit for bit (tests/test_sensors.py). The simulator samples through here every tick: a sensor
         whose conversion is a few float operations overrides it with them, as numpy's per-call cost on a
         3-vector is several times the arithmetic."""
         return self.read(np.asarray(x)).tolist()
@@ -125,10 +127,11 @@ class SensorSuite:
             out[..., sl] = s.read(x)
         return out
 
-    def sample(self, x, noise: NoiseStream | None = None) -> dict:
+    def sample(self, x, noise: NoiseStream | None = None, out: dict | None = None) -> dict:
         """The readings at a control tick, channel -> value: floats from a 1-D ``x`` (one simulation), arrays
-        ``(n,)`` from a 2-D one (a row per simulation); one tick of ``noise`` added when given. The simulator and
-        the batched runner both sample through here."""
+        ``(n,)`` from a 2-D one (a row per simulation); one tick of ``noise`` added when given. Into ``out`` when
+        given (the runner's signal dict, :meth:`rotorlab.sim.control.flight_software.FlightSoftware.step_signals`),
+        else into a new dict; returns it. The simulator and the batched runner both sample through here."""
         if x.ndim == 1:
             # one simulation: floats throughout (Sensor.read_floats), the same sums as add_noise's
             xs = x.tolist()
@@ -137,15 +140,19 @@ class SensorSuite:
                 vals += read(xs)
             if noise is not None:
                 if self._all_noisy:
-                    vals = [v + n for v, n in zip(vals, noise.next_floats())]
+                    vals = map(add, vals, noise.next_floats())  # the additions in C, consumed by the dict below
                 else:
                     for i, n in zip(self._noisy_list, noise.next_floats()):
                         vals[i] += n
+        else:
+            vals = self.read(x)
+            if noise is not None:
+                self.add_noise(vals, noise.next())
+            vals = vals.T
+        if out is None:
             return dict(zip(self.channels, vals))
-        vals = self.read(x)
-        if noise is not None:
-            self.add_noise(vals, noise.next())
-        return dict(zip(self.channels, vals.T))
+        out.update(zip(self.channels, vals))
+        return out
 
     def noise(self, rngs, bias) -> NoiseStream:
         """The noise stream of one simulation (one Generator, ``bias (n_noisy,)``) or of several (a list of
