@@ -26,7 +26,9 @@ def euler_deg(w: float, x: float, y: float, z: float) -> tuple[float, float, flo
     r20 = 2 * (x * z - w * y)
     r21 = 2 * (y * z + w * x)
     r22 = 1 - 2 * (x * x + y * y)
-    pitch = math.asin(max(-1.0, min(1.0, r20)))  # forward axis rising = nose up
+    # max(-1.0, min(1.0, r20)) as comparisons, the builtins' very results (a NaN gives 1.0) without two calls
+    r20 = r20 if r20 < 1.0 else 1.0
+    pitch = math.asin(r20 if r20 > -1.0 else -1.0)  # forward axis rising = nose up
     roll = math.atan2(r21, r22)  # left axis rising = right side down
     yaw = -math.atan2(r10, r00)  # heading turning clockwise seen from above = nose right
     return roll * RAD2DEG, pitch * RAD2DEG, yaw * RAD2DEG

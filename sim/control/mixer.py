@@ -24,6 +24,8 @@ produce reverse thrust, so commands are clipped to [-100, 100] %; ``'variable-rp
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rotorlab.errors import ConfigError
@@ -94,13 +96,14 @@ class Mixer:
         range unless ``clip=False``.
 
         Plain Python on purpose: for 4-8 rotors it is several times faster than building numpy arrays, and it
-        runs every tick.
+        runs every tick (one loop: a list comprehension is a function call of its own before Python 3.12).
         """
-        raw = [collective * a + roll * b + pitch * c + yaw * d for a, b, c, d in self._rows]
-        if not clip:
-            return tuple(raw)
-        lo, hi = self.out_min, self.out_max
-        return tuple([hi if v > hi else (lo if v < lo else v) for v in raw])
+        lo, hi = (self.out_min, self.out_max) if clip else (-math.inf, math.inf)  # +-inf: no value is changed
+        out = []
+        for a, b, c, d in self._rows:
+            v = collective * a + roll * b + pitch * c + yaw * d
+            out.append(hi if v > hi else (lo if v < lo else v))
+        return tuple(out)
 
     def mix_many(self, collective, roll, pitch, yaw) -> np.ndarray:
         """:meth:`mix` for many simulations: axis commands ``(n,)`` (or floats common to all) -> rotor commands

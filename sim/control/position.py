@@ -24,6 +24,7 @@ from rotorlab.sim.control.pid import DiscretePID
 
 G_MPS2 = 9.80665
 _DEG = math.pi / 180.0
+_RAD = 180.0 / math.pi
 _REF_MASS_KG = 5.0  # the P2-A2 MTOW: the mass the default bandwidths are chosen for
 
 
@@ -136,13 +137,14 @@ class PositionHold:
         vy_ref = vmax if v > vmax else (-vmax if v < -vmax else v)
         ax = self.vx.step(vx_ref, vx)
         ay = self.vy.step(vy_ref, vy)
-        psi = math.radians(psi_deg)
+        # math.radians/degrees are these very products (CPython multiplies by the same constants), without a call
+        psi = psi_deg * _DEG
         c, s = math.cos(psi), math.sin(psi)
         a_fwd = c * ax + s * ay
         a_right = -s * ax + c * ay
-        v = -math.degrees(math.atan2(a_fwd, G_MPS2))
+        v = -(math.atan2(a_fwd, G_MPS2) * _RAD)
         theta_ref = tilt_max if v > tilt_max else (-tilt_max if v < -tilt_max else v)
-        v = math.degrees(math.atan2(a_right, G_MPS2))
+        v = math.atan2(a_right, G_MPS2) * _RAD
         phi_ref = tilt_max if v > tilt_max else (-tilt_max if v < -tilt_max else v)
         return phi_ref, theta_ref
 

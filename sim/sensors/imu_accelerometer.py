@@ -9,7 +9,7 @@ import numpy as np
 from rotorlab.sim.frames import FLU_TO_FRD
 from rotorlab.sim.sensors.base import Sensor
 
-_FLU_TO_FRD_FLOATS = FLU_TO_FRD.tolist()
+_KX, _KY, _KZ = FLU_TO_FRD.tolist()  # unpacked: read_floats runs every tick
 
 
 class ImuAccelerometer(Sensor):
@@ -25,7 +25,8 @@ class ImuAccelerometer(Sensor):
         return x[..., self.slice] * FLU_TO_FRD
 
     def read_floats(self, x: list) -> list:
-        return [v * k for v, k in zip(x[self.slice], _FLU_TO_FRD_FLOATS)]
+        a, b, c = x[self.slice]
+        return [a * _KX, b * _KY, c * _KZ]
 
 
 __all__ = ["ImuAccelerometer"]

@@ -23,8 +23,8 @@ class ImuAttitude(Sensor):
         # one simulation: scalar math on four floats is several times cheaper than numpy on a 4-vector
         return euler_deg_from_quat(q) if q.ndim == 1 else euler_deg_from_quats(q)
 
-    def read_floats(self, x: list) -> list:
-        return list(euler_deg(*x[self.slice]))
+    def read_floats(self, x: list) -> tuple:
+        return euler_deg(*x[self.slice])
 
 
 __all__ = ["ImuAttitude"]

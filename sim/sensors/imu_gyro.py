@@ -10,7 +10,7 @@ from rotorlab.sim.frames import FLU_TO_FRD, RAD2DEG
 from rotorlab.sim.sensors.base import Sensor
 
 _SCALE = FLU_TO_FRD * RAD2DEG
-_SCALE_FLOATS = _SCALE.tolist()
+_KP, _KQ, _KR = _SCALE.tolist()  # unpacked: read_floats runs every tick
 
 
 class ImuGyro(Sensor):
@@ -27,7 +27,8 @@ class ImuGyro(Sensor):
         return x[..., self.slice] * _SCALE
 
     def read_floats(self, x: list) -> list:
-        return [v * k for v, k in zip(x[self.slice], _SCALE_FLOATS)]
+        p, q, r = x[self.slice]
+        return [p * _KP, q * _KQ, r * _KR]
 
 
 __all__ = ["ImuGyro"]
