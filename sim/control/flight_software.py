@@ -202,11 +202,14 @@ class FlightSoftware:
             return float(sig(t))
         return sig[self._k] if self._k < len(sig) else 0.0
 
-    def _setpoint(self, name: str, refs: dict, meas_value, t: float) -> float:
+    def _setpoint(self, name: str, refs: dict, sig: dict, meas: str, t: float) -> float:
+        """Set-point ``name``: set in ``refs``, else latched to the measurement ``sig[meas]`` (read once, when it
+        latches), plus its excitation."""
         v = refs.get(name)
         if v is None:
             v = self._latched.get(name)
             if v is None:
+                meas_value = sig.get(meas)
                 if meas_value is None:
                     raise ConfigError(f"set-point '{name}' is not set and there is no measurement to latch it to",
                                       field=name[:-4], expected="a measurement in meas")
@@ -246,8 +249,8 @@ class FlightSoftware:
 
         # outer loops
         if mode == "position":
-            x_ref = self._setpoint("x_ref", refs, sig.get("x"), t)
-            y_ref = self._setpoint("y_ref", refs, sig.get("y"), t)
+            x_ref = self._setpoint("x_ref", refs, sig, "x", t)
+            y_ref = self._setpoint("y_ref", refs, sig, "y", t)
             phi_ref, theta_ref = self.position.step(x_ref, y_ref, sig["x"], sig["y"], sig["vx"], sig["vy"], psi)
             if exc:
                 phi_ref += self._exc("phi_ref", t)
@@ -261,12 +264,12 @@ class FlightSoftware:
                 theta_ref += self._exc("theta_ref", t)
         psi_ref = refs.get("psi_ref")
         if psi_ref is None or exc:
-            psi_ref = self._setpoint("psi_ref", refs, psi, t)
+            psi_ref = self._setpoint("psi_ref", refs, sig, "psi", t)
         if mode == "position" or self.altitude_hold or "z_ref" in refs:
             if self.n is not None:
                 raise ConfigError("a position or altitude set-point needs the flight software of one simulation",
                                   field="reference", expected="attitude set-points and commands", got=sorted(refs))
-            z_ref = self._setpoint("z_ref", refs, sig.get("z"), t)
+            z_ref = self._setpoint("z_ref", refs, sig, "z", t)
             u_col = self.altitude.step(-z_ref, -sig["z"], -sig["vz"], phi, theta)
             sig["z_ref"] = z_ref
         else:
