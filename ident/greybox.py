@@ -699,7 +699,9 @@ def split_periods(x, period: int, skip: int = 1):
         ``n`` the whole periods after the first ``skip``; a partial last period is dropped.
     """
     x = np.asarray(x, dtype=float)
+    if not period >= 1:
+        raise ValueError(f"a period is at least one sample; got {period}")
     n = x.shape[0] // period - skip
-    if period < 1 or n < 1:
+    if n < 1:
         raise ValueError(f"need at least {skip + 1} whole periods of {period} samples; got {x.shape[0]} samples")
     return x[skip * period:(skip + n) * period].reshape((n, period) + x.shape[1:])

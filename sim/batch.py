@@ -43,7 +43,7 @@ from rotorlab.gains import GainSet
 from rotorlab.scenes import PHYSICS_DT_S, PREFIX
 from rotorlab.sim import randomize, scenarios
 from rotorlab.sim.disturbances.mean_wind import SampledWind, WindDisturbance, total_wind_ned, toward_ned
-from rotorlab.sim.frames import RAD2DEG, euler_deg_from_quats
+from rotorlab.sim.frames import NED_TO_ZUP, RAD2DEG, euler_deg_from_quats
 from rotorlab.sim.runner import BASE_COLUMNS, check_duration, make_flight_software, resolve_gains
 from rotorlab.sim.simulator import DIVERGENCE_WARNINGS, Simulator, diverged_reason, set_rotor_ctrl, set_wind
 from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
@@ -52,7 +52,6 @@ from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
 SCENES = ("pitch-rig", "roll-rig")
 #: the randomisation parameters (:mod:`rotorlab.sim.randomize`) the batch's per-simulation model fields can carry
 VARY_KEYS = ("mass", "inertia", "wind")
-_NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
 #: log columns of the physics' ground truth (the others are the flight software's signals)
 _TRUTH_COLUMNS = ("phi_true", "theta_true", "p_true", "q_true", "p_dot", "q_dot")
 
@@ -292,7 +291,7 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
 
     # wind: the scenario's (common) plus each simulation's steady wind
     wind_dists = list(setup.disturbances)
-    wind_sim_zup = params["wind_ned_mps"] * _NED_TO_ZUP
+    wind_sim_zup = params["wind_ned_mps"] * NED_TO_ZUP
     windy = bool(wind_dists) or bool(np.any(wind_sim_zup))
     opt_wind = batch.expand("opt.wind") if windy else None
 
@@ -326,9 +325,9 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
         tr["p_true"][k], tr["q_true"][k] = w_loc[:, 0] * RAD2DEG, -w_loc[:, 1] * RAD2DEG
         # ---- wind at the tick (Simulator.tick: the disturbances' sum, then set_wind)
         if windy:
-            w = total_wind_ned(wind_dists, t) * _NED_TO_ZUP + wind_sim_zup
+            w = total_wind_ned(wind_dists, t) * NED_TO_ZUP + wind_sim_zup
             if wind_dists:
-                w_ned = w * _NED_TO_ZUP
+                w_ned = w * NED_TO_ZUP
                 tr["wind_u"][k], tr["wind_v"][k], tr["wind_w"][k] = w_ned.T
             set_wind(opt_wind, ctrl, xmat[:, airframe], w, aero)
         # ---- physics: one control period, sensors at the tick

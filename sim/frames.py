@@ -13,6 +13,8 @@ RAD2DEG = 180.0 / math.pi
 
 # FRD rate = FLU_TO_FRD * FLU rate (x kept, y and z flipped)
 FLU_TO_FRD = np.array([1.0, -1.0, -1.0])
+# MuJoCo world (x north, z up) vector = NED_TO_ZUP * NED vector (north kept, east and down flipped)
+NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
 AXES = ("roll", "pitch", "yaw")
 
 

@@ -223,6 +223,8 @@ def test_periodic_closed_loop_fit_with_pd_on_angle_and_rate():
     np.testing.assert_array_equal(split_periods(np.arange(11.0), 3, skip=1), [[3, 4, 5], [6, 7, 8]])
     with pytest.raises(ValueError, match="whole periods"):
         periodic_average(np.zeros(10), 6, skip=1)
+    with pytest.raises(ValueError, match="at least one sample"):  # not a ZeroDivisionError
+        split_periods(np.zeros(10), 0)
     with pytest.raises(ValueError, match="initial state"):
         oe_fit_closed_loop(truth, ctl, r1, avg, dt, feedback_output=(0, 1), periods=2, estimate_x0=True)
 

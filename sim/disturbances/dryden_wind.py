@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from rotorlab.sim.disturbances.dryden import DrydenTurbulence
-from rotorlab.sim.disturbances.mean_wind import _NED_TO_ZUP, WIND_COLUMNS, SampledWind, toward_ned
-from rotorlab.sim.frames import RAD2DEG
+from rotorlab.sim.disturbances.mean_wind import WIND_COLUMNS, SampledWind, toward_ned
+from rotorlab.sim.frames import NED_TO_ZUP, RAD2DEG
 
 
 def turbulence_axes_ned(from_deg: float) -> np.ndarray:
@@ -84,7 +84,7 @@ class DrydenWind(SampledWind):
         gust gradients) is kept for :meth:`update` in the same axes."""
         uvw, pqr = self.generator(rng).generate_with_rates(n, dt, self.span_m)
         self._rate_ned = pqr @ self._axes.T
-        self._rate_zup = self._rate_ned * _NED_TO_ZUP
+        self._rate_zup = self._rate_ned * NED_TO_ZUP
         return uvw @ self._axes.T
 
 

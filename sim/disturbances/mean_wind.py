@@ -19,9 +19,9 @@ import numpy as np
 
 from rotorlab.errors import ConfigError, RotorlabError
 from rotorlab.sim.disturbances.base import Disturbance
+from rotorlab.sim.frames import NED_TO_ZUP
 
 WIND_COLUMNS = {"wind_u": "m/s", "wind_v": "m/s", "wind_w": "m/s"}
-_NED_TO_ZUP = np.array([1.0, -1.0, -1.0])
 
 
 def toward_ned(from_deg: float) -> np.ndarray:
@@ -46,7 +46,7 @@ class WindDisturbance(Disturbance):
     stage = mujoco.mjtStage.mjSTAGE_VEL  # the fuselage drag under opt.wind; the rotor aero controls come later
 
     def update(self, sim, t: float) -> None:
-        sim.wind_world += self.wind_ned(t) * _NED_TO_ZUP
+        sim.wind_world += self.wind_ned(t) * NED_TO_ZUP
 
     def values(self, sim) -> dict:
         # the total wind the coming control period is flown in (every wind disturbance writes the same sum)
@@ -78,7 +78,7 @@ class SampledWind(WindDisturbance):
         self._dt = sim.control_dt_s
         n = int(math.ceil(self.duration_s / self._dt)) + 1
         self._w = self.record_ned(rng, n, self._dt)
-        self._w_zup = self._w * _NED_TO_ZUP  # update's conversion, made once for the record
+        self._w_zup = self._w * NED_TO_ZUP  # update's conversion, made once for the record
 
     def _index(self, t: float) -> int:
         k = int(round(t / self._dt))
@@ -115,7 +115,7 @@ class MeanWind(WindDisturbance):
         self.speed_mps = float(speed_mps)
         self.from_deg = float(from_deg)
         self._w = speed_mps * toward_ned(from_deg) + np.array([0.0, 0.0, float(vertical_mps)])
-        self._w_zup = self._w * _NED_TO_ZUP  # update's conversion, made once
+        self._w_zup = self._w * NED_TO_ZUP  # update's conversion, made once
 
     def wind_ned(self, t: float) -> np.ndarray:
         return self._w
