@@ -238,12 +238,8 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     if not (isinstance(n, (int, np.integer)) and n >= 1):
         raise ConfigError(field="n", expected="a number of simulations >= 1", got=n)
     n = int(n)
-    mod = scenarios.get(scenario)
+    mod, scene = scenarios.get_with_scene(scenario, scene)
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
-    scene = scene or mod.SCENES[0]
-    if scene not in mod.SCENES:
-        raise ConfigError(f"scenario '{scenario}' runs in {list(mod.SCENES)}", field="scene",
-                          expected=list(mod.SCENES), got=scene)
     if scene not in SCENES:
         raise ConfigError("the batched runner runs the rig scenes", field="scene", expected=list(SCENES), got=scene)
     duration_s = float(duration_s if duration_s is not None else mod.DURATION_S)

@@ -161,12 +161,8 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     interrupted run can never pass for a finished one.
     """
     t_start = time.perf_counter()
-    mod = scenarios.get(name)
+    mod, scene = scenarios.get_with_scene(name, scene)
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
-    scene = scene or mod.SCENES[0]
-    if scene not in mod.SCENES:
-        raise ConfigError(f"scenario '{name}' runs in {list(mod.SCENES)}", field="scene", expected=list(mod.SCENES),
-                          got=scene)
     duration_s = float(duration_s if duration_s is not None else mod.DURATION_S)
     n_ticks = check_duration(duration_s, v.control_dt_s, record_poses)
     if out is not None:  # before the simulation: a read-only folder must not cost the run

@@ -128,3 +128,14 @@ def get(name: str):
     if name not in SCENARIOS:
         raise UnknownNameError("scenario", name, SCENARIOS)
     return importlib.import_module(f"rotorlab.sim.scenarios.{SCENARIOS[name]}")
+
+
+def get_with_scene(name: str, scene: str | None):
+    """Scenario module ``name`` and the scene a run of it takes place in: ``scene``, or the scenario's first (its
+    default); a ConfigError naming the scenario's scenes when it does not run in ``scene``."""
+    mod = get(name)
+    scene = scene or mod.SCENES[0]
+    if scene not in mod.SCENES:
+        raise ConfigError(f"scenario '{name}' runs in {list(mod.SCENES)}", field="scene", expected=list(mod.SCENES),
+                          got=scene)
+    return mod, scene
