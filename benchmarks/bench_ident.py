@@ -28,10 +28,12 @@ import numpy as np  # noqa: E402
 from rotorlab.excitation import campaign  # noqa: E402
 from rotorlab.ident import IdentifiedModel, bootstrap, moesp, nugap, pbsid  # noqa: E402
 from rotorlab.lti import c2d_zoh  # noqa: E402
+from rotorlab.vehicles import load_vehicle  # noqa: E402
 
 DT = 0.02
-TESTBED = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])
-FLIGHT = ct.tf([13.8194, 13.8194 * 2.761], [1, 5.198, 25.04])
+PUBLISHED = load_vehicle("anteos-p2a2").published  # ref. 000 PBSID models, read from the vehicle spec
+TESTBED = ct.tf(PUBLISHED["testbed"].num, PUBLISHED["testbed"].den)
+FLIGHT = ct.tf(PUBLISHED["flight"].num, PUBLISHED["flight"].den)
 
 
 def best_ms(fn, repeat=7, number=3):

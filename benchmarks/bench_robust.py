@@ -20,12 +20,14 @@ from rotorlab import lti  # noqa: E402
 from rotorlab.tune.margins import margins  # noqa: E402
 from rotorlab.tune.montecarlo import montecarlo, single_loop  # noqa: E402
 from rotorlab.tune.robust import control_sensitivity, fit_wdelta, h_lim  # noqa: E402
+from rotorlab.vehicles import load_vehicle  # noqa: E402
 
 DT = 0.02
+P2A2 = load_vehicle("anteos-p2a2").published["testbed"]  # ref. 000 PBSID test-bed rate model
 
 
 def p2a2_rate_loop():
-    G = lti.with_io_delay(lti.c2d_zoh(ct.tf([12.517, 36.374], [1, 5.583, 21.3]), DT), 3 * DT)
+    G = lti.with_io_delay(lti.c2d_zoh(ct.tf(P2A2.num, P2A2.den), DT), 3 * DT)
     return G, lti.as_ss(lti.pid_tf(0.257, 0.643, 0.0231, 0.0225, DT))
 
 
@@ -46,8 +48,9 @@ def fourteenth_order_loop():
 def main():
     G, C = p2a2_rate_loop()
     rng = np.random.default_rng(0)
-    reps = [lti.with_io_delay(lti.c2d_zoh(ct.tf([12.517 * (1 + 0.05 * rng.standard_normal()), 36.374],
-                                               [1, 5.583 * (1 + 0.05 * rng.standard_normal()), 21.3]), DT), 3 * DT)
+    (k, kz), (_, a1, a0) = P2A2.num, P2A2.den
+    reps = [lti.with_io_delay(lti.c2d_zoh(ct.tf([k * (1 + 0.05 * rng.standard_normal()), kz],
+                                               [1, a1 * (1 + 0.05 * rng.standard_normal()), a0]), DT), 3 * DT)
             for _ in range(100)]
     w = np.geomspace(0.1, 0.9 * np.pi / DT, 120)
     t_fit, W = best_wall_s(lambda: fit_wdelta(G, reps, w))

@@ -26,6 +26,7 @@ from rotorlab.tune.cascade import cascade_structure, gains_to_theta, plant_model
 from rotorlab.tune.goals import evaluate, objective, tune_cascade  # noqa: E402
 from rotorlab.tune.hinfstruct import hinfstruct  # noqa: E402
 from rotorlab.tune.spec import load_spec  # noqa: E402
+from rotorlab.vehicles import load_vehicle  # noqa: E402
 
 
 class Clock:
@@ -47,7 +48,8 @@ class Clock:
 
 def cascade():
     spec = load_spec("anteos-p2a2")
-    model = plant_model([12.517, 12.517 * 2.906], [1, 5.583, 21.3], 0.06, "test-bed")
+    pm = load_vehicle("anteos-p2a2").published["testbed"]
+    model = plant_model(pm.num, pm.den, pm.delay_s, "test-bed")
     std = load_gains("vehicles/anteos-p2a2/gains/standard.toml")
     with Clock() as c1:
         r1 = tune_cascade(spec, [model], std)
@@ -58,7 +60,8 @@ def cascade():
     print(f"P2-A2 cascade, 20 starts/2p: {c20}  objective {r20.objective:.4f}  "
           f"(per-start objectives min/median {np.nanmin(r20.starts):.4f}/{np.median(r20.starts):.4f})")
     spec_a2 = load_spec("anteos-a2minib")
-    model_a2 = plant_model([10.29, 33.68], [1, 5.112, 14.72], 0.06, "test-bed")
+    pm = load_vehicle("anteos-a2minib").published["testbed"]
+    model_a2 = plant_model(pm.num, pm.den, pm.delay_s, "test-bed")
     with Clock() as ca:
         ra = tune_cascade(spec_a2, [model_a2], load_gains("vehicles/anteos-a2minib/gains/standard.toml"))
     print(f"A2-MINI/B cascade, 1 start : {ca}  objective {ra.objective:.4f}  "

@@ -17,6 +17,7 @@ from rotorlab.tune.goals import CrossoverBand, evaluate, objective, tune_cascade
 from rotorlab.tune.hinfstruct import closed_loop
 from rotorlab.tune.margins import crossover_frequencies, margins
 from rotorlab.tune.spec import load_spec
+from rotorlab.vehicles import load_vehicle
 
 VEH = Path(__file__).resolve().parents[1] / "vehicles"
 
@@ -42,13 +43,19 @@ def analyse(spec, gains, model):
             f"{settle:.2f} | {100 * (y.max() - 1):.1f} | {gust:.3f} | {obj:.3f}")
 
 
+def published(vehicle, which, name):
+    """The published identified model ``[published.WHICH]`` of the vehicle spec (its one source) as a plant."""
+    pm = load_vehicle(vehicle).published[which]
+    return plant_model(pm.num, pm.den, pm.delay_s, name)
+
+
 def main():
     cases = [
-        ("anteos-p2a2", plant_model([12.517, 12.517 * 2.906], [1, 5.583, 21.3], 0.06, "test-bed"),
+        ("anteos-p2a2", published("anteos-p2a2", "testbed", "test-bed"),
          ["standard", "optimal-testbed", "optimal-flight"]),
-        ("anteos-p2a2", plant_model([13.8194, 13.8194 * 2.761], [1, 5.198, 25.04], 0.06, "flight"),
+        ("anteos-p2a2", published("anteos-p2a2", "flight", "flight"),
          ["standard", "optimal-testbed", "optimal-flight"]),
-        ("anteos-a2minib", plant_model([10.29, 33.68], [1, 5.112, 14.72], 0.06, "test-bed"), ["standard", "optimal"]),
+        ("anteos-a2minib", published("anteos-a2minib", "testbed", "test-bed"), ["standard", "optimal"]),
     ]
     print("| vehicle / model | gains | wc outer [rad/s] | wc inner [rad/s] | GM_u [dB] | PM_u [deg] | disk alpha_u "
           "| rise [s] | settle 2% [s] | overshoot [%] | gust peak [deg/%] | spec objective |")

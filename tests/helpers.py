@@ -1,5 +1,6 @@
-"""Plain helpers shared by test modules (fixtures live in conftest.py): a ground-truth plant written out
-independently of the library, a reader of a pipeline summary's claim metrics and the walk of a one-file-per-class
+"""Plain helpers shared by test modules (fixtures live in conftest.py): the published identified models read
+from the vehicle specs (their one source), a ground-truth plant built from one of them independently of the
+library's cascade code, a reader of a pipeline summary's claim metrics and the walk of a one-file-per-class
 registry package."""
 
 import importlib
@@ -10,13 +11,22 @@ import control as ct
 import numpy as np
 
 from rotorlab.lti import c2d_zoh
+from rotorlab.vehicles import load_vehicle
+
+
+def published_tf(vehicle: str, which: str) -> tuple[ct.TransferFunction, float]:
+    """A published identified model (reference 000) as its vehicle spec stores it, ``[published.WHICH]`` of
+    ``vehicles/VEHICLE/vehicle.toml``: the continuous rate response ``u (%) -> q (deg/s)``, delay removed, and
+    its input delay (s). Tests read the coefficients here rather than typing them again."""
+    pm = load_vehicle(vehicle).published[which]
+    return ct.tf(list(pm.num), list(pm.den)), pm.delay_s
 
 
 def p2a2_testbed_angle_rate(dt: float) -> ct.StateSpace:
     """The P2-A2 test-bed pitch model (reference 000, PBSID) ``q/u = 12.517 (s + 2.906) / (s^2 + 5.583 s +
     21.3)``, integrated to the angle in continuous time: ``u`` (%) -> ``[theta (deg), q (deg/s)]``, ZOH at ``dt``
     (s). The 3-sample input delay is the caller's."""
-    G = ct.tf2ss(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]))
+    G = ct.tf2ss(published_tf("anteos-p2a2", "testbed")[0])
     A = np.block([[G.A, np.zeros((2, 1))], [G.C, np.zeros((1, 1))]])
     B = np.vstack([G.B, G.D])
     C = np.vstack([np.hstack([np.zeros((1, 2)), np.ones((1, 1))]), np.hstack([G.C, np.zeros((1, 1))])])

@@ -5,6 +5,7 @@ import json
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab.cli import main
 from rotorlab.errors import ConfigError
@@ -15,7 +16,7 @@ from rotorlab.ident.modelio import load_model, save_model
 from rotorlab.ident.structures import rate_tf_structure
 from rotorlab.lti import c2d_zoh, freqresp
 
-PUBLISHED = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])  # P2-A2 test-bed, doc 000
+PUBLISHED, PUBLISHED_DELAY_S = published_tf("anteos-p2a2", "testbed")  # P2-A2 test-bed, doc 000
 
 
 @pytest.fixture(scope="module")
@@ -65,10 +66,11 @@ def test_model_json_round_trip_and_transfer_function_form(tmp_path):
     assert delay_s == pytest.approx(0.06) and sys.dt == 0.02 and meta["settings"] == {"order": 2}
     np.testing.assert_allclose(sys.A, sysd.A)
     tf = tmp_path / "tf.json"
-    tf.write_text(json.dumps({"num": [12.517, 36.374], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06}))
+    num, den = PUBLISHED.num[0][0], PUBLISHED.den[0][0]
+    tf.write_text(json.dumps({"num": num.tolist(), "den": den.tolist(), "dt": 0, "delay_s": PUBLISHED_DELAY_S}))
     sys, delay_s, _ = load_model(tf)
-    assert sys.dt == 0 and delay_s == 0.06
-    assert ct.dcgain(sys) == pytest.approx(36.374 / 21.3)
+    assert sys.dt == 0 and delay_s == PUBLISHED_DELAY_S
+    assert ct.dcgain(sys) == pytest.approx(num[-1] / den[-1])
 
 
 @pytest.mark.parametrize("doc, field", [

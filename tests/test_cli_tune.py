@@ -2,13 +2,17 @@
 
 import json
 
+from helpers import published_tf
+
 from rotorlab.cli import main
 from rotorlab.gains import load_gains
 
 
 def test_cli_tune_writes_gains_and_reports_every_goal(tmp_path, capsys):
     model = tmp_path / "tb.json"
-    model.write_text(json.dumps({"num": [12.517, 36.374402], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06}))
+    G, delay_s = published_tf("anteos-p2a2", "testbed")
+    model.write_text(json.dumps({"num": G.num[0][0].tolist(), "den": G.den[0][0].tolist(), "dt": 0,
+                                 "delay_s": delay_s}))
     out = tmp_path / "g.toml"
     rc = main(["tune", "--model", str(model), "--spec", "anteos-p2a2", "--start", "standard", "--out", str(out),
                "--max-iter", "30"])

@@ -7,6 +7,7 @@ import re
 
 import numpy as np
 import pytest
+from helpers import published_tf
 from scipy.signal import lfilter
 
 import rotorlab.plotting as plotting
@@ -210,16 +211,19 @@ def test_plot_compare_and_bode_write_labelled_pngs(tmp_path, capsys, captured_fi
     assert line.split()[-4:] == [f"{rise[0]:.4g}", f"{rise[1]:.4g}", f"{100 * (rise[1] - rise[0]) / rise[0]:+.1f}", "%"]
 
     mj = tmp_path / "pub.json"
-    mj.write_text(json.dumps({"num": [12.517, 36.374], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06,
+    G, delay_s = published_tf("anteos-p2a2", "testbed")
+    num, den = G.num[0][0], G.den[0][0]
+    mj.write_text(json.dumps({"num": num.tolist(), "den": den.tolist(), "dt": 0, "delay_s": delay_s,
                               "input": ["u_lon"], "output": ["q"], "units": {"u_lon": "%", "q": "deg/s"}}))
     assert main(["bode", str(mj), "--out", str(tmp_path / "bode.png")]) == 0
     text = capsys.readouterr().out
     fig = captured_figures[-1]
     _check_labelled(fig)
     assert fig["axes"][0]["y"] == "magnitude [dB re 1 (deg/s)/(%)]" and fig["axes"][1]["x"] == "frequency [rad/s]"
-    # the published model's poles -2.79 +/- 3.68j rad/s, zero -2.906 rad/s, DC gain 36.374/21.3
-    assert "s = -2.791 +/- 3.675j rad/s" in text and "s = -2.906 rad/s" in text
-    assert f"DC gain u_lon -> q: {36.374 / 21.3:.4g} (deg/s)/(%)" in text
+    # the published model's poles (-2.79 +/- 3.68j rad/s), zero (-2.906 rad/s) and DC gain
+    p = max(np.roots(den), key=lambda s: s.imag)
+    assert f"s = {p.real:.4g} +/- {p.imag:.4g}j rad/s" in text and f"s = {-num[1] / num[0]:.4g} rad/s" in text
+    assert f"DC gain u_lon -> q: {num[-1] / den[-1]:.4g} (deg/s)/(%)" in text
     assert main(["plot", str(a), "--signals", "nope"]) == 2
 
 

@@ -10,20 +10,21 @@ import time
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab.excitation import prbs
 from rotorlab.executor import Executor, get_executor
 from rotorlab.gains import load_gains
 from rotorlab.ident import IdentifiedModel, bootstrap, pbsid
 from rotorlab.lti import c2d_zoh
-from rotorlab.tune import load_spec, plant_model, tune_cascade
+from rotorlab.tune import PlantModel, load_spec, tune_cascade
 from rotorlab.tune.montecarlo import montecarlo, single_loop
 from rotorlab.vehicles import gains_path
 
 distributed = pytest.importorskip("dask.distributed")
 
 DT = 0.02
-G = c2d_zoh(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]), DT)
+G = c2d_zoh(published_tf("anteos-p2a2", "testbed")[0], DT)
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +101,7 @@ def test_montecarlo_on_dask_matches_this_process(cluster):
 
 def test_tuning_starts_on_dask_match_this_process(cluster):
     spec = load_spec("anteos-p2a2")
-    plant = plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06)
+    plant = PlantModel(*published_tf("anteos-p2a2", "testbed"))
     std = load_gains(gains_path("anteos-p2a2", "standard"))
     where = _Where(cluster[0])
     a = tune_cascade(spec, [plant], std, starts=2, seed=0, max_iter=3)

@@ -24,6 +24,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from helpers import published_tf
 
 from rotorlab import atomic
 from rotorlab.cli import main
@@ -487,7 +488,8 @@ def test_unreadable_stage_log_is_a_clean_error(tmp_path):
 # -- helpers ---------------------------------------------------------------------------------------------
 def _model(tmp_path) -> Path:
     m = tmp_path / "tb.json"
-    m.write_text(json.dumps({"num": [12.517, 36.374402], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06}))
+    G, delay_s = published_tf("anteos-p2a2", "testbed")
+    m.write_text(json.dumps({"num": G.num[0][0].tolist(), "den": G.den[0][0].tolist(), "dt": 0, "delay_s": delay_s}))
     return m
 
 

@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
+from helpers import published_tf  # noqa: E402
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
@@ -168,7 +169,8 @@ def test_fuzz_spec_toml(tmp_path, capsys, quick_tune, doc):
     p = tmp_path / "spec.toml"
     p.write_text(to_toml(doc))
     m = tmp_path / "m.json"
-    m.write_text(json.dumps({"num": [12.517, 36.374402], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06}))
+    G, delay_s = published_tf("anteos-p2a2", "testbed")
+    m.write_text(json.dumps({"num": G.num[0][0].tolist(), "den": G.den[0][0].tolist(), "dt": 0, "delay_s": delay_s}))
     _no_escape(capsys, ["tune", "--model", m, "--spec", p, "--out", tmp_path / "g.toml"])
 
 

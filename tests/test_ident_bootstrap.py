@@ -5,6 +5,7 @@ import functools
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab.errors import DataError
 from rotorlab.excitation import prbs
@@ -12,7 +13,7 @@ from rotorlab.ident import IdentifiedModel, bootstrap, model_frf, moesp, pbsid
 from rotorlab.lti import c2d_zoh
 
 DT = 0.02
-TRUTH = IdentifiedModel(c2d_zoh(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]), DT), delay=3)
+TRUTH = IdentifiedModel(c2d_zoh(published_tf("anteos-p2a2", "testbed")[0], DT), delay=3)
 
 
 def _record(seed):

@@ -4,6 +4,7 @@ transformed) realisation, and the published Butterworth weight is what the paper
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab.ident.hinf_match import butterworth_weight, hinf_match
 from rotorlab.ident.model import IdentifiedModel
@@ -43,8 +44,9 @@ def test_hinf_match_of_mismatched_structure_reports_the_residual_norm():
     # with the gain held 10 % off, the rate form cannot match exactly: the reported norm is the exact
     # weighted peak of the remaining error, which bounds (and is close to) its maximum on a dense grid
 
-    truth = rigid_rig_structure()
-    wrong = rate_tf_structure(K=1.1 * 12.517, fixed=("K", "delay_s"))
+    truth = rigid_rig_structure()  # its defaults are the published P2-A2 test-bed model
+    K_pub = published_tf("anteos-p2a2", "testbed")[0].num[0][0][0]
+    wrong = rate_tf_structure(K=1.1 * K_pub, fixed=("K", "delay_s"))
     res = hinf_match(c2d_zoh(truth.ss(), 0.02), wrong, restarts=0, omega=np.logspace(-2, 2, 150))
     E = ct.series(ct.parallel(res.black_box, -res.sys), butterworth_weight())
     grid_peak = np.max(np.abs(freqresp(E, np.logspace(-2, 2, 4000))[:, 0, 0]))

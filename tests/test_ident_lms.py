@@ -3,13 +3,14 @@
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab.errors import DataError
 from rotorlab.ident import LMS, IdentifiedModel, kung, lms_batch, nugap
 from rotorlab.lti import c2d_zoh
 
 DT = 0.02
-G = c2d_zoh(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]), DT)  # P2-A2 pitch, 50 Hz
+G = c2d_zoh(published_tf("anteos-p2a2", "testbed")[0], DT)  # P2-A2 pitch, 50 Hz
 
 
 def markov(sys, n):

@@ -5,6 +5,7 @@ the pipeline use exactly this table."""
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab.cli import main
 from rotorlab.ident.greybox import simulate_greybox
@@ -13,7 +14,7 @@ from rotorlab.ident.structures import rate_tf_structure
 from rotorlab.lti import c2d_zoh, freqresp
 from rotorlab.pipeline.stages import identify
 
-PUBLISHED = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])  # P2-A2 test-bed, doc 000, delay 0.06 s
+PUBLISHED = published_tf("anteos-p2a2", "testbed")[0]  # P2-A2 test-bed, doc 000, delay 0.06 s
 DT, DELAY = 0.02, 3
 # settings per method; a method added to the table without an entry here fails test_every_method_is_tested
 SETTINGS = {

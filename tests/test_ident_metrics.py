@@ -3,6 +3,7 @@
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab.errors import DataError
 from rotorlab.excitation import prbs
@@ -21,8 +22,8 @@ from rotorlab.ident import (
 from rotorlab.lti import c2d_zoh
 
 DT = 0.02
-TESTBED = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])  # P2-A2 PBSID test-bed model
-FLIGHT = ct.tf([13.8194, 13.8194 * 2.761], [1, 5.198, 25.04])  # P2-A2 PBSID in-flight model
+TESTBED = published_tf("anteos-p2a2", "testbed")[0]  # P2-A2 PBSID test-bed model
+FLIGHT = published_tf("anteos-p2a2", "flight")[0]  # P2-A2 PBSID in-flight model
 
 
 def test_vaf_definition():

@@ -4,6 +4,7 @@ closed loop, a random MIMO system, the exact rank structure of noise-free data, 
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 from scipy.signal import lfilter
 
 from rotorlab.errors import DataError
@@ -15,7 +16,7 @@ from rotorlab.lti import as_ss, c2d_zoh, pid_tf, with_io_delay
 DT = 0.02
 DELAY = 3
 # PBSID test-bed model of the ANTEOS P2-A2 pitch rate, delay removed (000_*.txt)
-P2A2 = ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])
+P2A2 = published_tf("anteos-p2a2", "testbed")[0]
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import shutil
 
 import numpy as np
 import pytest
-from helpers import claim_metrics
+from helpers import claim_metrics, published_tf
 
 from rotorlab import pipeline
 from rotorlab.errors import UnknownNameError
@@ -213,7 +213,7 @@ def test_control_sensitivity_is_the_additive_uncertainty_channel():
     from rotorlab.vehicles import gains_path
 
     dt = 0.02
-    G = ct.c2d(ct.ss(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3])), dt, "zoh")
+    G = ct.c2d(ct.ss(published_tf("anteos-p2a2", "testbed")[0]), dt, "zoh")
     g = load_gains(gains_path("anteos-p2a2", "standard"))["pitch"]
     V = control_sensitivity_cascade(PlantModel(G, 0.06), g)
     Ci = pid_tf(g.inner.kp, g.inner.ki, g.inner.kd, g.inner.tf, dt)

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab import scenes
 from rotorlab.config import Table
@@ -14,7 +15,7 @@ from rotorlab.errors import ConfigError
 from rotorlab.gains import load_gains
 from rotorlab.sim import scenarios
 from rotorlab.sim.runner import run_scenario
-from rotorlab.tune import evaluate, plant_model
+from rotorlab.tune import PlantModel, evaluate
 from rotorlab.tune.goals import GOAL_TYPES, Goal
 from rotorlab.tune.spec import Spec
 from rotorlab.vehicles import VEHICLES_DIR, gains_path, list_gains, list_vehicles, load_vehicle
@@ -30,7 +31,7 @@ GOAL_TABLES = {
     "margins": {"point": "u", "gm_db": 4.0, "pm_deg": 25.0},
     "poles": {"min_damping": 0.1},
 }
-PUBLISHED = plant_model([12.517, 12.517 * 2.906], [1, 5.583, 21.3], delay_s=0.06, name="test-bed")
+PUBLISHED = PlantModel(*published_tf("anteos-p2a2", "testbed"), name="test-bed")
 
 
 def test_every_goal_type_is_walked():

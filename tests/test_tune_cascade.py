@@ -5,19 +5,20 @@ from pathlib import Path
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab import lti
 from rotorlab.errors import ConfigError
 from rotorlab.gains import load_gains
-from rotorlab.tune.cascade import N_CON, N_MEAS, cascade_plant, cascade_structure, generalised_plant, plant_model
+from rotorlab.tune.cascade import N_CON, N_MEAS, PlantModel, cascade_plant, cascade_structure, generalised_plant
 from rotorlab.tune.goals import CrossoverBand, evaluate, objective, tune_cascade
 from rotorlab.tune.hinfstruct import closed_loop
 from rotorlab.tune.margins import crossover_frequencies
 from rotorlab.tune.spec import load_spec, parse_spec
 
 VEH = Path(__file__).resolve().parents[1] / "vehicles"
-P2_TB = plant_model([12.517, 12.517 * 2.906], [1, 5.583, 21.3], 0.06, "test-bed")
-A2_TB = plant_model([10.29, 33.68], [1, 5.112, 14.72], 0.06, "test-bed")
+P2_TB = PlantModel(*published_tf("anteos-p2a2", "testbed"), "test-bed")
+A2_TB = PlantModel(*published_tf("anteos-a2minib", "testbed"), "test-bed")
 
 
 def _by_goal(results):

@@ -5,6 +5,7 @@ import math
 import control as ct
 import numpy as np
 import pytest
+from helpers import published_tf
 
 from rotorlab import lti
 from rotorlab.errors import DataError
@@ -39,7 +40,7 @@ def test_discrete_delay_loop_matches_analytic(n, k):
 
 def _p2a2_inner_loop(dt=0.02):
     """ANTEOS P2-A2 rate loop (ref. 000): PBSID test-bed model, 3-sample delay, standard PID."""
-    G = lti.c2d_zoh(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]), dt)
+    G = lti.c2d_zoh(published_tf("anteos-p2a2", "testbed")[0], dt)
     C = lti.pid_tf(0.257, 0.643, 0.0231, 0.0225, dt)
     return ct.series(lti.as_ss(C), lti.with_io_delay(G, 3 * dt))
 

@@ -7,6 +7,7 @@ import control as ct
 import numpy as np
 import pytest
 import scipy.signal
+from helpers import published_tf
 
 from rotorlab import lti
 from rotorlab.errors import DataError
@@ -15,11 +16,12 @@ from rotorlab.tune.montecarlo import montecarlo, random_delta, single_loop, wors
 from rotorlab.tune.robust import additive_spread, control_sensitivity, fit_wdelta, h_lim, h_lim_analysis
 
 DT = 0.02
+P2A2 = published_tf("anteos-p2a2", "testbed")[0]  # P2-A2 test-bed rate model (doc 000), delay removed
 W_TRUE = ct.tf(np.polymul([0.5, 0.5], [1, 4, 25]), np.polymul([1, 10], [1, 6, 100]))  # order 3, stable, min-phase
 
 
 def _p2a2(dt=DT, delay=True):
-    G = lti.c2d_zoh(ct.tf([12.517, 12.517 * 2.906], [1, 5.583, 21.3]), dt)
+    G = lti.c2d_zoh(P2A2, dt)
     return lti.with_io_delay(G, 3 * dt) if delay else G
 
 
@@ -29,7 +31,7 @@ def _pid(dt=DT):
 
 def test_wdelta_recovers_a_known_envelope():
     # replicas G_nom +- W_true: the spread is exactly |W_true|, which the order-3 family contains
-    G = ct.tf([12.517, 36.37], [1, 5.583, 21.3])
+    G = P2A2
     reps = [G + W_TRUE, G - W_TRUE]
     w = np.geomspace(0.1, 300, 150)
     W = fit_wdelta(G, reps, w)
@@ -41,13 +43,14 @@ def test_wdelta_recovers_a_known_envelope():
 
 def test_wdelta_bounds_bootstrap_like_spread_continuous_and_discrete():
     rng = np.random.default_rng(3)
+    G = P2A2
+    (k, kz), (_, a1, a0) = G.num[0][0], G.den[0][0]
 
     def rep():
         a, b, c, d = 1 + np.array([0.05, 0.1, 0.05, 0.05]) * rng.standard_normal(4)
-        return ct.tf([12.517 * a, 36.37 * b], [1, 5.583 * c, 21.3 * d])
+        return ct.tf([k * a, kz * b], [1, a1 * c, a0 * d])
 
     reps = [rep() for _ in range(20)]
-    G = ct.tf([12.517, 36.37], [1, 5.583, 21.3])
     w = np.geomspace(0.1, 100, 120)
     W = fit_wdelta(G, reps, w)
     spread = additive_spread(G, reps, w)
@@ -97,8 +100,8 @@ def test_wdelta_bounds_the_spread_up_to_nyquist():
     # h_lim takes the norm over the whole band, so the envelope must hold at pi/dt too
     rng = np.random.default_rng(5)
     G = _p2a2(delay=False)
-    reps = [lti.c2d_zoh(ct.tf([12.517 * a, 36.37 * b], [1, 5.583, 21.3 * c]), DT)
-            for a, b, c in 1 + 0.05 * rng.standard_normal((10, 3))]
+    (k, kz), (_, a1, a0) = P2A2.num[0][0], P2A2.den[0][0]
+    reps = [lti.c2d_zoh(ct.tf([k * a, kz * b], [1, a1, a0 * c]), DT) for a, b, c in 1 + 0.05 * rng.standard_normal((10, 3))]
     w = np.geomspace(0.1, math.pi / DT, 100)
     W = fit_wdelta(G, reps, w)
     assert np.all(np.abs(lti.freqresp(W, w)[:, 0, 0]) >= additive_spread(G, reps, w) * (1 - 1e-9))
@@ -150,7 +153,7 @@ def test_h_lim_flags_a_controller_independent_dc_bound():
 def test_worst_case_delta_is_an_allpass_that_defeats_the_loop_just_above_h_lim(dt):
     # small-gain theorem: every ||Delta|| < h_lim is stable; the phase-matched all-pass at 1.02 h_lim is not
     # continuous: the PI part of the standard inner loop with a 0.05 s roll-off (finite peak frequency)
-    G, C = (_p2a2(), _pid()) if dt else (ct.tf([12.517, 36.37], [1, 5.583, 21.3]), ct.tf([0.257, 0.643], [0.05, 1, 0]))
+    G, C = (_p2a2(), _pid()) if dt else (P2A2, ct.tf([0.257, 0.643], [0.05, 1, 0]))
     W = ct.tf([0.5, 1.0], [0.05, 1.0]) * 0.05
     W = lti.c2d_zoh(W, dt) if dt else W
     V = control_sensitivity(G, C)
