@@ -21,10 +21,10 @@ import math
 from rotorlab.errors import ConfigError
 from rotorlab.gains import LoopGains
 from rotorlab.sim.control.pid import DiscretePID
+from rotorlab.sim.frames import RAD2DEG
 
 G_MPS2 = 9.80665
 _DEG = math.pi / 180.0
-_RAD = 180.0 / math.pi
 _REF_MASS_KG = 5.0  # the P2-A2 MTOW: the mass the default bandwidths are chosen for
 
 
@@ -142,9 +142,9 @@ class PositionHold:
         c, s = math.cos(psi), math.sin(psi)
         a_fwd = c * ax + s * ay
         a_right = -s * ax + c * ay
-        v = -(math.atan2(a_fwd, G_MPS2) * _RAD)
+        v = -(math.atan2(a_fwd, G_MPS2) * RAD2DEG)
         theta_ref = tilt_max if v > tilt_max else (-tilt_max if v < -tilt_max else v)
-        v = math.atan2(a_right, G_MPS2) * _RAD
+        v = math.atan2(a_right, G_MPS2) * RAD2DEG
         phi_ref = tilt_max if v > tilt_max else (-tilt_max if v < -tilt_max else v)
         return phi_ref, theta_ref
 

@@ -72,8 +72,7 @@ class DrydenWind(SampledWind):
 
     def values(self, sim) -> dict:
         out = super().values(sim)
-        n, e, d = (self._rate_ned[self._index(sim.time)] * RAD2DEG).tolist()
-        out["air_rate_n"], out["air_rate_e"], out["air_rate_d"] = n, e, d
+        out["air_rate_n"], out["air_rate_e"], out["air_rate_d"] = self._rate_dps[self._index(sim.time)]
         return out
 
     def generator(self, rng) -> DrydenTurbulence:
@@ -83,8 +82,9 @@ class DrydenWind(SampledWind):
         """The gust velocities (NED); the air's rotation over :attr:`span_m` that goes with them (the standard's
         gust gradients) is kept for :meth:`update` in the same axes."""
         uvw, pqr = self.generator(rng).generate_with_rates(n, dt, self.span_m)
-        self._rate_ned = pqr @ self._axes.T
-        self._rate_zup = self._rate_ned * NED_TO_ZUP
+        rate_ned = pqr @ self._axes.T
+        self._rate_zup = rate_ned * NED_TO_ZUP
+        self._rate_dps = (rate_ned * RAD2DEG).tolist()  # the logged rotation, converted once for the record
         return uvw @ self._axes.T
 
 

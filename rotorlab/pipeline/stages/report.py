@@ -150,9 +150,10 @@ def claims(summary: dict, tuned: str) -> list[dict]:
     the published optimum, each on the metric that matches the claim's wording."""
     v = summary.get("validation", {})
     opt = published_optimum(summary.get("gains", {}))
+    allowance = overshoot_allowance(summary, opt)
     rows = []
     for what, checks in CLAIMS.get(summary.get("vehicle"), []):
-        res = [_check(v, sc, key, test, tuned, opt, overshoot_allowance(summary, opt)) for sc, key, test in checks]
+        res = [_check(v, sc, key, test, tuned, opt, allowance) for sc, key, test in checks]
         known = [r["holds"] for r in res if r["holds"] is not None]
         rows.append({"claim": what, "holds": (all(known) if known else None), "checks": res,
                      "evidence": "; ".join(r["evidence"] for r in res)})
