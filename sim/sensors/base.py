@@ -128,10 +128,11 @@ class SensorSuite:
         return out
 
     def sample(self, x, noise: NoiseStream | None = None, out: dict | None = None) -> dict:
-        """The readings at a control tick, channel -> value: floats from a 1-D ``x`` (one simulation), arrays
-        ``(n,)`` from a 2-D one (a row per simulation); one tick of ``noise`` added when given. Into ``out`` when
-        given (the runner's signal dict, :meth:`rotorlab.sim.control.flight_software.FlightSoftware.step_signals`),
-        else into a new dict; returns it. The simulator and the batched runner both sample through here."""
+        """The readings at a control tick, channel -> value: floats from a 1-D ``x`` (one simulation; an array
+        or a memoryview of MjData's ``sensordata``), arrays ``(n,)`` from a 2-D array (a row per simulation); one
+        tick of ``noise`` added when given. Into ``out`` when given (the runner's signal dict,
+        :meth:`rotorlab.sim.control.flight_software.FlightSoftware.step_signals`), else into a new dict; returns
+        it. The simulator and the batched runner both sample through here."""
         if x.ndim == 1:
             # one simulation: floats throughout (Sensor.read_floats), the same sums as add_noise's
             xs = x.tolist()
