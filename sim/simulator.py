@@ -178,21 +178,19 @@ def air_rate_map(model, data, airframe: int, aero: dict):
     (``Scene.aero_actuators``) measures it. A site actuator's velocity is ``gear . [v_site; omega_site]`` (site
     axes, which the hubs keep along the airframe's to the flap angle); air turning rigidly about the CG moves at
     ``omega x r_i`` with rotation ``omega`` at the site ``r_i``, so its row is ``J_i = r_i x gear_lin + gear_rot``.
-    Taken at the state in ``data`` (the hover keyframe). Returns ``(ids_add, J_add, ids_set, J_set)``: the
-    inflow and in-plane actuators, whose controls :func:`set_wind` has just written, and the disc-tilt dampers,
-    whose reference nothing else drives."""
+    Taken at the state in ``data`` (the hover keyframe). Returns ``(rows_add, rows_set)``, rows
+    ``(actuator id, J_i)`` as Python numbers (:func:`set_air_rate` reads them every tick): the inflow and
+    in-plane actuators, whose controls :func:`set_wind` has just written, and the disc-tilt dampers, whose
+    reference nothing else drives."""
     R = data.xmat[airframe].reshape(3, 3)
-    add, set_ = ([], []), ([], [])
+    add, set_ = [], []
     for key, ids in aero.items():
         for i in np.arange(model.nu)[ids].reshape(-1):
             site = model.actuator_trnid[i, 0]
             r = R.T @ (data.site_xpos[site] - data.xpos[airframe])
             g = model.actuator_gear[i]
-            dst = set_ if key.startswith("tilt") else add
-            dst[0].append(int(i))
-            dst[1].append(np.cross(r, g[:3]) + g[3:6])
-    return (np.array(add[0], dtype=int), np.array(add[1]).reshape(-1, 3),
-            np.array(set_[0], dtype=int), np.array(set_[1]).reshape(-1, 3))
+            (set_ if key.startswith("tilt") else add).append((int(i), *(np.cross(r, g[:3]) + g[3:6]).tolist()))
+    return add, set_
 
 
 def set_air_rate(ctrl, xmat, air_rate_world, rate_map) -> None:
@@ -203,11 +201,19 @@ def set_air_rate(ctrl, xmat, air_rate_world, rate_map) -> None:
     becomes the air's rotation (their torque ``D (omega_air - omega_disc)``: the blades' angle of attack changes
     with the disc's rotation relative to the air, which is how gust gradients enter an aircraft's damping
     derivatives). One simulation: ``ctrl (nu,)``, ``xmat (9,)`` of the airframe (the simulator refuses the air's
-    rotation on a scene without one)."""
-    wb = np.reshape(xmat, (3, 3)).T @ air_rate_world
-    ids_add, J_add, ids_set, J_set = rate_map
-    ctrl[ids_add] += J_add @ wb
-    ctrl[ids_set] = J_set @ wb
+    rotation on a scene without one); ``ctrl`` an array or a memoryview of MjData's."""
+    # written out in floats: this runs every tick of a turbulent run, and numpy's per-call cost on a 3-vector and
+    # a dozen actuators is several times the arithmetic (the batched runner flies no gust gradients)
+    a0, a1, a2 = air_rate_world.tolist()
+    r = xmat.tolist()
+    # the rotation in the airframe's axes, R^T a (R's rows are xmat's)
+    w0, w1, w2 = (r[0] * a0 + r[3] * a1 + r[6] * a2, r[1] * a0 + r[4] * a1 + r[7] * a2,
+                  r[2] * a0 + r[5] * a1 + r[8] * a2)
+    rows_add, rows_set = rate_map
+    for i, j0, j1, j2 in rows_add:
+        ctrl[i] += j0 * w0 + j1 * w1 + j2 * w2
+    for i, j0, j1, j2 in rows_set:
+        ctrl[i] = j0 * w0 + j1 * w1 + j2 * w2
 
 
 class Diverged(RotorlabError):
@@ -307,7 +313,7 @@ class Simulator:
         # which MuJoCo's physics steps evict between two ticks (in the runner's loop the divergence check fell
         # from 5-6 to 2-3 us a tick)
         self._sd_mv = memoryview(self._sd_v)
-        self._qpos_mv = memoryview(d.qpos)
+        self._qpos_mv, self._ctrl_mv = memoryview(d.qpos), memoryview(d.ctrl)
         self._pos_mv, self._vel_mv, self._omega_mv = (memoryview(v) for v in (self._pos_v, self._vel_v, self._omega_v))
         self._af_xquat_mv, self._af_xmat_mv, self._af_xpos_mv = (
             memoryview(v) for v in (self._af_xquat, self._af_xmat, self._af_xpos))
@@ -416,7 +422,7 @@ class Simulator:
             set_wind(self._wind_v, self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.wind_world,
                      self.aero_ids)
             if self._rotates_air:  # only with an airframe (__init__)
-                set_air_rate(self._ctrl_v, self._af_xmat, self.air_rate_world, self._air_rate_map)
+                set_air_rate(self._ctrl_mv, self._af_xmat_mv, self.air_rate_world, self._air_rate_map)
             if regroup and self._update_stage < _STAGE_ACC:
                 if self._update_stage == _STAGE_VEL:
                     mujoco.mj_fwdVelocity(m, d)  # the passive forces (fuselage drag) under the new wind
