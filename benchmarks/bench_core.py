@@ -12,7 +12,9 @@ Each ratio is the median over the repeats of the ratio of the runs taken back to
 ratio of medians taken at different moments: on the shared 2-core machine the same 30,000 raw steps take 0.62 to
 0.89 s CPU within one process (other processes' cache and memory traffic), a drift over seconds that a ratio of
 neighbours cancels and a ratio of separate medians does not. The order within a repeat alternates (raw, rest, wind,
-then wind, rest, raw) so that a drift within a repeat does not favour one side.
+then wind, rest, raw) so that a drift within a repeat does not favour one side. Single repeats still range about
+0.5-1.4 on this machine; 11 repeats (about 45 s) keep the median steadier than 7 at a modest cost (runs of 15 s
+instead of 30 s would give more pairs but weigh the fixed cost of a run, the model build, twice as much).
 
 For reading the first ratio: the simulator has MuJoCo skip the sensors in the physics steps between ticks (they
 are read at the tick only; :meth:`rotorlab.sim.simulator.Simulator.tick`), which raw ``mj_step`` of the model
@@ -30,7 +32,7 @@ from rotorlab.sim.simulator import Simulator
 
 VEHICLE = "anteos-p2a2"
 DURATION_S = 30.0
-REPEATS = 7
+REPEATS = 11
 
 
 def _closed(name: str, **options) -> float:
