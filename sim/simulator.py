@@ -300,23 +300,20 @@ class Simulator:
         self._free = self.scene.name == "free-flight"
         # views into MjData's buffers, made once: attribute access through the bindings costs microseconds
         d = self.data
-        self._sd_v = d.sensordata
-        self._qpos_v, self._ctrl_v, self._xfrc_v = d.qpos, d.ctrl, d.xfrc_applied
-        # the free joint's position, velocity and angular velocity (read in free flight only)
-        self._pos_v, self._vel_v, self._omega_v = d.qpos[0:3], d.qvel[0:3], d.qvel[3:6]
+        self._sd_v, self._ctrl_v, self._xfrc_v = d.sensordata, d.ctrl, d.xfrc_applied
         af = max(self._airframe, 0)
-        self._af_xquat, self._af_xmat, self._af_xpos = d.xquat[af], d.xmat[af], d.xpos[af]
+        self._af_xmat = d.xmat[af]
         self._opt = self.model.opt
         self._wind_v = self._opt.wind
-        # memoryviews of the same buffers for the scalar reads of every tick: their tolist() and item access run a
-        # few lines of CPython's core where numpy's indexing and pybind's attribute access run far more code,
-        # which MuJoCo's physics steps evict between two ticks (in the runner's loop the divergence check fell
-        # from 5-6 to 2-3 us a tick)
-        self._sd_mv = memoryview(self._sd_v)
+        # memoryviews for the scalar reads of every tick: their tolist() and item access run a few lines of
+        # CPython's core where numpy's indexing and pybind's attribute access run far more code, which MuJoCo's
+        # physics steps evict between two ticks (in the runner's loop the divergence check fell from 5-6 to 2-3 us
+        # a tick); the free joint's position, velocity and angular velocity are read in free flight only
+        self._sd_mv = memoryview(d.sensordata)
         self._qpos_mv, self._ctrl_mv = memoryview(d.qpos), memoryview(d.ctrl)
-        self._pos_mv, self._vel_mv, self._omega_mv = (memoryview(v) for v in (self._pos_v, self._vel_v, self._omega_v))
+        self._pos_mv, self._vel_mv, self._omega_mv = (memoryview(v) for v in (d.qpos[0:3], d.qvel[0:3], d.qvel[3:6]))
         self._af_xquat_mv, self._af_xmat_mv, self._af_xpos_mv = (
-            memoryview(v) for v in (self._af_xquat, self._af_xmat, self._af_xpos))
+            memoryview(v) for v in (d.xquat[af], self._af_xmat, d.xpos[af]))
         self._warn_mv = memoryview(d.warning.number)  # live counts, int32
         self._warn_ids = [(int(w), w.name) for w in DIVERGENCE_WARNINGS]
         self._gyro_scale = (FLU_TO_FRD * RAD2DEG).tolist()
