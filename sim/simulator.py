@@ -155,7 +155,8 @@ def set_wind(opt_wind, ctrl, xmat, wind_world, aero: dict) -> None:
     """Wind (m/s, world, z up) into the physics: fuselage drag through ``opt.wind``, rotor inflow and H-force
     through the controls of the rotor aero actuators ``aero`` (``Scene.aero_actuators``), which take the wind in
     the airframe's axes (:func:`body_wind`; ``xmat`` None: a scene without an airframe takes it unrotated).
-    One simulation (``opt_wind, wind_world (3,)``, ``ctrl (nu,)``, ``xmat (9,)``) or a row per simulation."""
+    One simulation (``opt_wind, wind_world (3,)``, ``ctrl (nu,)``, ``xmat (9,)``, an array or a memoryview) or a
+    row per simulation."""
     opt_wind[...] = wind_world
     if wind_world.ndim == 1:
         # one simulation, every tick of a windy run: body_wind's product written out in floats, the sums of
@@ -302,7 +303,6 @@ class Simulator:
         d = self.data
         self._sd_v, self._ctrl_v, self._xfrc_v = d.sensordata, d.ctrl, d.xfrc_applied
         af = max(self._airframe, 0)
-        self._af_xmat = d.xmat[af]
         self._opt = self.model.opt
         self._wind_v = self._opt.wind
         # memoryviews for the scalar reads of every tick: their tolist() and item access run a few lines of
@@ -313,7 +313,7 @@ class Simulator:
         self._qpos_mv, self._ctrl_mv = memoryview(d.qpos), memoryview(d.ctrl)
         self._pos_mv, self._vel_mv, self._omega_mv = (memoryview(v) for v in (d.qpos[0:3], d.qvel[0:3], d.qvel[3:6]))
         self._af_xquat_mv, self._af_xmat_mv, self._af_xpos_mv = (
-            memoryview(v) for v in (d.xquat[af], self._af_xmat, d.xpos[af]))
+            memoryview(v) for v in (d.xquat[af], d.xmat[af], d.xpos[af]))
         self._warn_mv = memoryview(d.warning.number)  # live counts, int32
         self._warn_ids = [(int(w), w.name) for w in DIVERGENCE_WARNINGS]
         self._gyro_scale = (FLU_TO_FRD * RAD2DEG).tolist()
@@ -416,7 +416,7 @@ class Simulator:
             t = self.time
             for dist in self.disturbances:
                 dist.update(self, t)
-            set_wind(self._wind_v, self._ctrl_v, self._af_xmat if self._airframe >= 0 else None, self.wind_world,
+            set_wind(self._wind_v, self._ctrl_v, self._af_xmat_mv if self._airframe >= 0 else None, self.wind_world,
                      self.aero_ids)
             if self._rotates_air:  # only with an airframe (__init__)
                 set_air_rate(self._ctrl_mv, self._af_xmat_mv, self.air_rate_world, self._air_rate_map)
