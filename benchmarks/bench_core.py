@@ -9,8 +9,8 @@ cancels in the ratios):
    position hold with the same duration (target <= +20 %).
 
 Each ratio is the median over the repeats of the ratio of the runs taken back to back in one repeat, not the
-ratio of medians taken at different moments: on the shared 2-core machine the same 30,000 raw steps take 0.62 to
-0.89 s CPU within one process (other processes' cache and memory traffic), a drift over seconds that a ratio of
+ratio of medians taken at different moments: on the shared 2-core machine the same 30,000 raw steps take 0.55 to
+0.99 s CPU within one process (other processes' cache and memory traffic), a drift over seconds that a ratio of
 neighbours cancels and a ratio of separate medians does not. The order within a repeat alternates (raw, rest, wind,
 then wind, rest, raw) so that a drift within a repeat does not favour one side. Single repeats still range about
 0.5-1.4 on this machine; 11 repeats (about 45 s) keep the median steadier than 7 at a modest cost (runs of 15 s
