@@ -155,65 +155,69 @@ def set_wind(opt_wind, ctrl, xmat, wind_world, aero: dict) -> None:
     """Wind (m/s, world, z up) into the physics: fuselage drag through ``opt.wind``, rotor inflow and H-force
     through the controls of the rotor aero actuators ``aero`` (``Scene.aero_actuators``), which take the wind in
     the airframe's axes (:func:`body_wind`; ``xmat`` None: a scene without an airframe takes it unrotated).
-    One simulation (``opt_wind, wind_world (3,)``, ``ctrl (nu,)``, ``xmat (9,)``, an array or a memoryview) or a
-    row per simulation."""
+    A row per simulation (``opt_wind, wind_world (n, 3)``, ``ctrl (n, nu)``, ``xmat (n, 9)``: the batched
+    runner) or one simulation (1-D; the simulator's ticks with an airframe go through :func:`set_air_motion`)."""
     opt_wind[...] = wind_world
-    if wind_world.ndim == 1:
-        # one simulation, every tick of a windy run: body_wind's product written out in floats, the sums of
-        # numpy's 3x3 matrix-vector product in its order (tests/test_sim_core.py), at a fraction of numpy's
-        # per-call cost on 3-vectors
-        w0, w1, w2 = wind_world.tolist()
-        if xmat is not None:
-            r = xmat.tolist()
-            w0, w1, w2 = (r[0] * w0 + r[3] * w1 + r[6] * w2, r[1] * w0 + r[4] * w1 + r[7] * w2,
-                          r[2] * w0 + r[5] * w1 + r[8] * w2)
-        ctrl[aero["hx"]], ctrl[aero["hy"]], ctrl[aero["inflow"]] = w0, w1, w2
-        return
     wb = (wind_world if xmat is None else body_wind(xmat, wind_world)).T
     ct = ctrl.T  # actuator index first, as in set_rotor_ctrl
     ct[aero["hx"]], ct[aero["hy"]], ct[aero["inflow"]] = wb
 
 
-def air_rate_map(model, data, airframe: int, aero: dict):
-    """How the air's rigid rotation ``omega`` (rad/s, airframe axes) moves the air as each rotor aero actuator
-    (``Scene.aero_actuators``) measures it. A site actuator's velocity is ``gear . [v_site; omega_site]`` (site
-    axes, which the hubs keep along the airframe's to the flap angle); air turning rigidly about the CG moves at
-    ``omega x r_i`` with rotation ``omega`` at the site ``r_i``, so its row is ``J_i = r_i x gear_lin + gear_rot``.
-    Taken at the state in ``data`` (the hover keyframe). Returns ``(rows_add, rows_set)``, rows
-    ``(actuator id, J_i)`` as Python numbers (:func:`set_air_rate` reads them every tick): the inflow and
-    in-plane actuators, whose controls :func:`set_wind` has just written, and the disc-tilt dampers, whose
-    reference nothing else drives."""
+#: the component of the body-axis wind (:func:`body_wind`) each rotor aero actuator group takes
+_WIND_COMPONENT = {"hx": 0, "hy": 1, "inflow": 2}
+
+
+def air_motion_map(model, data, airframe: int, aero: dict):
+    """How the air's motion moves the rotor aero actuators (``Scene.aero_actuators``) of one simulation, for
+    :func:`set_air_motion`. The inflow and in-plane actuators take the wind in the airframe's axes, one component
+    each (:func:`set_wind`). The air's rigid rotation ``omega`` (rad/s, airframe axes) adds to what each actuator
+    measures: a site actuator's velocity is ``gear . [v_site; omega_site]`` (site axes, which the hubs keep along
+    the airframe's to the flap angle); air turning rigidly about the CG moves at ``omega x r_i`` with rotation
+    ``omega`` at the site ``r_i``, so its row is ``J_i = r_i x gear_lin + gear_rot``. Taken at the state in
+    ``data`` (the hover keyframe). Returns ``(rows_wind, rows_tilt)`` as Python numbers: ``(actuator id, wind
+    component, J_i)`` for the inflow and in-plane actuators and ``(actuator id, J_i)`` for the disc-tilt dampers,
+    whose reference only the air's rotation drives."""
     R = data.xmat[airframe].reshape(3, 3)
-    add, set_ = [], []
+    rows_wind, rows_tilt = [], []
     for key, ids in aero.items():
         for i in np.arange(model.nu)[ids].reshape(-1):
             site = model.actuator_trnid[i, 0]
             r = R.T @ (data.site_xpos[site] - data.xpos[airframe])
             g = model.actuator_gear[i]
-            (set_ if key.startswith("tilt") else add).append((int(i), *(np.cross(r, g[:3]) + g[3:6]).tolist()))
-    return add, set_
+            J = (np.cross(r, g[:3]) + g[3:6]).tolist()
+            if key.startswith("tilt"):
+                rows_tilt.append((int(i), *J))
+            else:
+                rows_wind.append((int(i), _WIND_COMPONENT[key], *J))
+    return rows_wind, rows_tilt
 
 
-def set_air_rate(ctrl, xmat, air_rate_world, rate_map) -> None:
-    """The air's rotation (rad/s, world, z up; the turbulence's gust gradients) into the rotor aero actuators,
-    after :func:`set_wind`: each actuator's reference takes the rigidly rotating air's motion as that actuator
-    measures it (``rate_map``, :func:`air_rate_map`): the hubs' inflow and in-plane air velocities differ by
-    ``omega x r_i`` (the fore/aft thrust difference of a pitch gradient), and the disc-tilt dampers' reference
-    becomes the air's rotation (their torque ``D (omega_air - omega_disc)``: the blades' angle of attack changes
-    with the disc's rotation relative to the air, which is how gust gradients enter an aircraft's damping
-    derivatives). One simulation: ``ctrl (nu,)``, ``xmat (9,)`` of the airframe (the simulator refuses the air's
-    rotation on a scene without one); ``ctrl`` an array or a memoryview of MjData's."""
-    # written out in floats: this runs every tick of a turbulent run, and numpy's per-call cost on a 3-vector and
-    # a dozen actuators is several times the arithmetic (the batched runner flies no gust gradients)
+def set_air_motion(opt_wind, ctrl, xmat, wind_world, air_rate_world, motion_map) -> None:
+    """The air's motion into one simulation with an airframe, every tick of a windy run: the wind (m/s, world,
+    z up) into ``opt.wind`` and the rotor aero controls as :func:`set_wind` puts it, and the air's rotation
+    (rad/s, world, z up; the turbulence's gust gradients; None: none) on top (``motion_map``,
+    :func:`air_motion_map`): the hubs' inflow and in-plane air velocities differ by ``omega x r_i`` (the fore/aft
+    thrust difference of a pitch gradient), and the disc-tilt dampers' reference becomes the air's rotation
+    (their torque ``D (omega_air - omega_disc)``: the blades' angle of attack changes with the disc's rotation
+    relative to the air, which is how gust gradients enter an aircraft's damping derivatives). ``ctrl (nu,)``
+    and ``xmat (9,)`` of the airframe: arrays or memoryviews of MjData's."""
+    # written out in floats, each control written once: numpy's per-call cost on 3-vectors and a dozen actuators
+    # is several times the arithmetic (tests/test_sim_core.py: the same floats as set_wind and numpy's products)
+    opt_wind[...] = wind_world
+    a0, a1, a2 = wind_world.tolist()
+    r0, r1, r2, r3, r4, r5, r6, r7, r8 = xmat.tolist()
+    # R^T a, R's rows being xmat's: the sums of numpy's 3x3 matrix-vector product in its order (body_wind)
+    wind_body = (r0 * a0 + r3 * a1 + r6 * a2, r1 * a0 + r4 * a1 + r7 * a2, r2 * a0 + r5 * a1 + r8 * a2)
+    rows_wind, rows_tilt = motion_map
+    if air_rate_world is None:
+        for i, k, _, _, _ in rows_wind:
+            ctrl[i] = wind_body[k]
+        return
     a0, a1, a2 = air_rate_world.tolist()
-    r = xmat.tolist()
-    # the rotation in the airframe's axes, R^T a (R's rows are xmat's)
-    w0, w1, w2 = (r[0] * a0 + r[3] * a1 + r[6] * a2, r[1] * a0 + r[4] * a1 + r[7] * a2,
-                  r[2] * a0 + r[5] * a1 + r[8] * a2)
-    rows_add, rows_set = rate_map
-    for i, j0, j1, j2 in rows_add:
-        ctrl[i] += j0 * w0 + j1 * w1 + j2 * w2
-    for i, j0, j1, j2 in rows_set:
+    w0, w1, w2 = (r0 * a0 + r3 * a1 + r6 * a2, r1 * a0 + r4 * a1 + r7 * a2, r2 * a0 + r5 * a1 + r8 * a2)
+    for i, k, j0, j1, j2 in rows_wind:
+        ctrl[i] = wind_body[k] + (j0 * w0 + j1 * w1 + j2 * w2)
+    for i, j0, j1, j2 in rows_tilt:
         ctrl[i] = j0 * w0 + j1 * w1 + j2 * w2
 
 
@@ -318,16 +322,16 @@ class Simulator:
         self._warn_ids = [(int(w), w.name) for w in DIVERGENCE_WARNINGS]
         self._gyro_scale = (FLU_TO_FRD * RAD2DEG).tolist()
         self.wind_world = np.zeros(3)
-        #: the air's rotation (rad/s, world, z up) this tick: the turbulence's gust gradients (:func:`set_air_rate`)
+        #: the air's rotation (rad/s, world, z up) this tick: the turbulence's gust gradients (:func:`set_air_motion`)
         self.air_rate_world = np.zeros(3)
         self._rotates_air = any(dist.rotates_air for dist in self.disturbances)
+        if self._rotates_air and self._airframe < 0:
+            raise ConfigError(f"the air's rotation (turbulence gust gradients) acts on a vehicle's rotors; the "
+                              f"{self.scene.name} scene has no airframe", field="disturbances",
+                              expected="a rig or free flight", got=self.scene.name)
         self.reset(seed)
-        if self._rotates_air:
-            if self._airframe < 0:
-                raise ConfigError(f"the air's rotation (turbulence gust gradients) acts on a vehicle's rotors; the "
-                                  f"{self.scene.name} scene has no airframe", field="disturbances",
-                                  expected="a rig or free flight", got=self.scene.name)
-            self._air_rate_map = air_rate_map(m, self.data, self._airframe, self.scene.aero_actuators)
+        self._air_map = (air_motion_map(m, self.data, self._airframe, self.scene.aero_actuators)
+                         if self._airframe >= 0 else None)
 
     # ------------------------------------------------------------------ state
     def reset(self, seed: int | None = None) -> None:
@@ -416,10 +420,11 @@ class Simulator:
             t = self.time
             for dist in self.disturbances:
                 dist.update(self, t)
-            set_wind(self._wind_v, self._ctrl_v, self._af_xmat_mv if self._airframe >= 0 else None, self.wind_world,
-                     self.aero_ids)
-            if self._rotates_air:  # only with an airframe (__init__)
-                set_air_rate(self._ctrl_mv, self._af_xmat_mv, self.air_rate_world, self._air_rate_map)
+            if self._air_map is not None:
+                set_air_motion(self._wind_v, self._ctrl_mv, self._af_xmat_mv, self.wind_world,
+                               self.air_rate_world if self._rotates_air else None, self._air_map)
+            else:  # no airframe (the thrust stand): the wind unrotated, no air rotation (__init__)
+                set_wind(self._wind_v, self._ctrl_v, None, self.wind_world, self.aero_ids)
             if regroup and self._update_stage < _STAGE_ACC:
                 if self._update_stage == _STAGE_VEL:
                     mujoco.mj_fwdVelocity(m, d)  # the passive forces (fuselage drag) under the new wind

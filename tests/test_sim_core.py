@@ -12,7 +12,7 @@ from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import build_scene
 from rotorlab.sim.disturbances import DrydenWind, InputDisturbanceStep, MeanWind, RecirculationMoment, RopePull
 from rotorlab.sim.runner import run_scenario
-from rotorlab.sim.simulator import Simulator, air_rate_map, body_wind, set_air_rate, set_wind
+from rotorlab.sim.simulator import Simulator, air_motion_map, body_wind, set_air_motion, set_wind
 from rotorlab.vehicles import load_vehicle, vehicle_path
 
 
@@ -109,10 +109,12 @@ def _plain_mujoco_tick(sim) -> None:
     sim.air_rate_world[:] = 0.0
     for dist in sim.disturbances:
         dist.update(sim, sim.time)
-    xmat = d.xmat[sim._airframe] if sim._airframe >= 0 else None
-    set_wind(m.opt.wind, d.ctrl, xmat, sim.wind_world, sim.aero_ids)
-    if any(dist.rotates_air for dist in sim.disturbances):
-        set_air_rate(d.ctrl, xmat, sim.air_rate_world, sim._air_rate_map)
+    if sim._airframe >= 0:
+        rotates = any(dist.rotates_air for dist in sim.disturbances)
+        set_air_motion(m.opt.wind, d.ctrl, d.xmat[sim._airframe], sim.wind_world,
+                       sim.air_rate_world if rotates else None, sim._air_map)
+    else:
+        set_wind(m.opt.wind, d.ctrl, None, sim.wind_world, sim.aero_ids)
     mujoco.mj_step(m, d, nstep=sim.n_substeps)
     mujoco.mj_forward(m, d)
 
@@ -149,40 +151,56 @@ def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle, scene, dists):
     assert "mjWARN_BADQ" in fast.check()
 
 
-def test_set_wind_of_one_simulation_writes_the_body_wind_of_many():
-    """set_wind's float path (one simulation, every windy tick) puts the same floats into opt.wind and the rotor
-    aero controls as its array path (the batched runner) and as numpy's matrix product body_wind, for random
-    airframe orientations and winds."""
-    aero = {"inflow": slice(1, 20, 6), "hx": slice(2, 21, 6), "hy": slice(3, 22, 6)}
+def test_air_motion_of_one_simulation_is_the_body_wind_of_many_plus_the_air_rotation():
+    """set_air_motion (one simulation, every windy tick, in floats) puts into opt.wind and the rotor aero
+    controls the same floats as set_wind's array path (the batched runner) and numpy's matrix product body_wind,
+    for random airframe orientations and winds; with the air's rotation it adds, to every inflow and in-plane
+    actuator and as every disc-tilt damper's reference, J_i . (R^T omega) of air_motion_map as numpy computes
+    it."""
+    sim = Simulator("free-flight", "anteos-p2a2", sensor_noise=False)
+    m, d = sim.model, sim.data
+    aero, motion = sim.aero_ids, air_motion_map(m, d, sim._airframe, sim.scene.aero_actuators)
+    rows_wind, rows_tilt = motion
+    assert {i for i, *_ in rows_wind} == set(np.arange(m.nu)[np.r_[aero["hx"], aero["hy"], aero["inflow"]]])
+    assert {i for i, *_ in rows_tilt} == set(np.arange(m.nu)[np.r_[aero["tilt_x"], aero["tilt_y"]]])
     rng = np.random.default_rng(3)
     q = rng.standard_normal((200, 4))
     xmat = np.empty((200, 9))
     for k, quat in enumerate(q / np.linalg.norm(q, axis=1, keepdims=True)):
         mujoco.mju_quat2Mat(xmat[k], quat)
-    wind = rng.normal(0.0, 4.0, (200, 3))
-    many_ctrl, many_opt = np.zeros((200, 24)), np.zeros((200, 3))
+    wind, rate = rng.normal(0.0, 4.0, (200, 3)), rng.normal(0.0, 0.5, (200, 3))
+    many_ctrl, many_opt = np.zeros((200, m.nu)), np.zeros((200, 3))
     set_wind(many_opt, many_ctrl, xmat, wind, aero)
     for k in range(200):
-        ctrl, opt = np.zeros(24), np.zeros(3)
-        set_wind(opt, ctrl, xmat[k], wind[k], aero)
+        ctrl, opt = np.zeros(m.nu), np.zeros(3)
+        set_air_motion(opt, memoryview(ctrl), memoryview(xmat[k]), wind[k], None, motion)
         assert np.array_equal(ctrl, many_ctrl[k]) and np.array_equal(opt, wind[k])
         wb = body_wind(xmat[k], wind[k])
         assert np.array_equal(ctrl[[2, 3, 1]], wb) and np.array_equal(ctrl[[20, 21, 19]], wb)
+        set_air_motion(opt, ctrl, xmat[k], wind[k], rate[k], motion)
+        w = body_wind(xmat[k], rate[k])
+        expect = many_ctrl[k].copy()
+        for i, _, *J in rows_wind:
+            expect[i] += np.dot(J, w)
+        for i, *J in rows_tilt:
+            expect[i] = np.dot(J, w)
+        np.testing.assert_allclose(ctrl, expect, rtol=1e-14, atol=1e-15)
+    ctrl = np.zeros(m.nu)
     set_wind(opt, ctrl, None, wind[0], aero)  # no airframe: the wind unrotated
     assert np.array_equal(ctrl[[2, 3, 1]], wind[0])
 
 
 @pytest.mark.parametrize("vehicle", ["anteos-p2a2", "tuhh-quad"])
 def test_rotor_aerodynamics_see_rotation_relative_to_the_air(vehicle):
-    """set_air_rate (the turbulence's gust gradients): every rotor aero actuator (inflow, H-force with its
-    flapping moment, hub disc-tilt damping) acts on the motion relative to the air, so a vehicle turning with the
-    air feels none of the rotors' damping, and air turning round a still vehicle pushes it as hard as the damping
-    resists the opposite turn, at any attitude. The fuselage's own drag (MuJoCo's fluid model, not a rotor
+    """set_air_motion with the air's rotation (the turbulence's gust gradients): every rotor aero actuator
+    (inflow, H-force with its flapping moment, hub disc-tilt damping) acts on the motion relative to the air, so a
+    vehicle turning with the air feels none of the rotors' damping, and air turning round a still vehicle pushes it
+    as hard as the damping resists the opposite turn, at any attitude. The fuselage's own drag (MuJoCo's fluid model, not a rotor
     actuator) is switched off: it sees the uniform wind only."""
     sim = Simulator("free-flight", vehicle, sensor_noise=False)
     m, d = sim.model, sim.data
     m.opt.density = 0.0
-    rate_map = air_rate_map(m, d, sim._airframe, sim.scene.aero_actuators)
+    motion = air_motion_map(m, d, sim._airframe, sim.scene.aero_actuators)
     tilt = np.zeros(4)
     mujoco.mju_axisAngle2Quat(tilt, np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2]), 0.35)
 
@@ -192,7 +210,8 @@ def test_rotor_aerodynamics_see_rotation_relative_to_the_air(vehicle):
         d.qvel[3:6] = body_rate  # the free joint's angular velocity is in the airframe's axes
         mujoco.mj_forward(m, d)
         R = d.xmat[sim._airframe].reshape(3, 3)
-        set_air_rate(d.ctrl, d.xmat[sim._airframe], R @ np.asarray(air_rate_body, float), rate_map)
+        set_air_motion(m.opt.wind, d.ctrl, d.xmat[sim._airframe], np.zeros(3), R @ np.asarray(air_rate_body, float),
+                       motion)
         mujoco.mj_forward(m, d)
         return d.qacc.copy()  # the airframe's and the hub discs' (the tilt dampers act about the flap hinges)
 

@@ -4,7 +4,7 @@ The gust velocities come from :class:`rotorlab.sim.disturbances.dryden.DrydenTur
 disturbance's own generator; ``u`` is along the mean wind (the direction the air moves), ``v`` horizontal to its
 right, ``w`` down, with the standard's gust gradients ``p_g, q_g, r_g`` over the vehicle's span: the air's
 rotation, which the rotors feel through their inflow and disc-tilt damping
-(:func:`rotorlab.sim.simulator.set_air_rate`). The record is drawn once at reset for the whole run, so a seed
+(:func:`rotorlab.sim.simulator.set_air_motion`). The record is drawn once at reset for the whole run, so a seed
 gives the same gusts whatever else the run contains.
 """
 

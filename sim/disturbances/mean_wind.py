@@ -48,6 +48,11 @@ class WindDisturbance(Disturbance):
     def update(self, sim, t: float) -> None:
         sim.wind_world += self.wind_ned(t) * NED_TO_ZUP
 
+    def wind_ned_floats(self, t: float) -> list:
+        """:meth:`wind_ned` as a list of floats, for :meth:`values` every tick (a wind kept as a record or a
+        constant keeps it as floats too, converted once)."""
+        return self.wind_ned(t).tolist()
+
     def values(self, sim) -> dict:
         # the total wind the coming control period is flown in (every wind disturbance writes the same sum)
         winds = sim.wind_disturbances
@@ -58,7 +63,7 @@ class WindDisturbance(Disturbance):
         t = sim.time
         u = v = w = 0
         for d in winds:
-            a, b, c = d.wind_ned(t).tolist()
+            a, b, c = d.wind_ned_floats(t)
             u, v, w = u + a, v + b, w + c
         return {"wind_u": u, "wind_v": v, "wind_w": w}
 
@@ -79,6 +84,7 @@ class SampledWind(WindDisturbance):
         n = int(math.ceil(self.duration_s / self._dt)) + 1
         self._w = self.record_ned(rng, n, self._dt)
         self._w_zup = self._w * NED_TO_ZUP  # update's conversion, made once for the record
+        self._w_rows = self._w.tolist()
 
     def _index(self, t: float) -> int:
         k = int(round(t / self._dt))
@@ -89,6 +95,9 @@ class SampledWind(WindDisturbance):
 
     def wind_ned(self, t: float) -> np.ndarray:
         return self._w[self._index(t)]
+
+    def wind_ned_floats(self, t: float) -> list:
+        return self._w_rows[self._index(t)]
 
     def update(self, sim, t: float) -> None:
         sim.wind_world += self._w_zup[self._index(t)]
@@ -116,9 +125,13 @@ class MeanWind(WindDisturbance):
         self.from_deg = float(from_deg)
         self._w = speed_mps * toward_ned(from_deg) + np.array([0.0, 0.0, float(vertical_mps)])
         self._w_zup = self._w * NED_TO_ZUP  # update's conversion, made once
+        self._w_floats = self._w.tolist()
 
     def wind_ned(self, t: float) -> np.ndarray:
         return self._w
+
+    def wind_ned_floats(self, t: float) -> list:
+        return self._w_floats
 
     def update(self, sim, t: float) -> None:
         sim.wind_world += self._w_zup
