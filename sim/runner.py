@@ -182,6 +182,7 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
         columns.update(dist.columns)
     columns.update(setup.extra_columns)
     log = RunLog(columns, n_ticks + 1)
+    sim.forces_at_tick = _reads_forces(sim, setup, fs, columns, record_poses)
     poses = None
     if record_poses:
         poses = PoseTrack(sim, n_ticks + 1)
@@ -208,6 +209,22 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     out_dir = write_run(out, log, info) if out is not None else None
     timing = {"build_s": t_loop - t_start, "sim_s": t_done - t_loop, "score_s": time.perf_counter() - t_done}
     return RunResult(log, info, out_dir, stopped, poses.trimmed() if poses is not None else None, timing)
+
+
+def _reads_forces(sim: Simulator, setup, fs: FlightSoftware, columns: dict, record_poses: bool) -> bool:
+    """Whether anything of this run reads acceleration-stage data at the ticks (:attr:`Simulator.forces_at_tick`):
+    the accelerometer's channels logged or a controller's input, a pose recording (the rotor thrusts), or code
+    the runner cannot see into (a bench drive, a scenario's per-tick callback, a plug-in without a declared
+    input list). The cascade, the position and altitude holds fly on attitudes, rates and positions only."""
+    if setup.drive is not None or setup.on_tick is not None or record_poses:
+        return True
+    reads = set(columns)
+    for pl in fs.plugins:
+        spec = getattr(pl, "spec", None)
+        if spec is None:
+            return True
+        reads.update(spec.inputs)
+    return not reads.isdisjoint(sim.acc_channels)
 
 
 def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, progress: bool,

@@ -108,6 +108,27 @@ def test_load_cell_and_tachometer_read_the_rotor(vehicle):
     assert "load-cell" not in Simulator("pitch-rig", vehicle, sensor_noise=False).sensors
 
 
+@pytest.mark.parametrize("scene", ["free-flight", "thrust-stand"])
+def test_every_sensor_declares_whether_it_reads_acceleration_stage_data(scene):
+    """Sensor.acceleration_stage (which lets the simulator skip the tick's acceleration pass when nothing reads
+    the sensor) says the truth for every registered sensor: with MuJoCo's acceleration-stage sensordata
+    (sensor_needstage) replaced by NaN, a sensor's readings are NaN exactly when it declares the stage."""
+    sim = Simulator(scene, "anteos-p2a2", sensor_noise=False)
+    m = sim.model
+    x = sim.data.sensordata.copy()
+    for i in range(m.nsensor):
+        if m.sensor_needstage[i] == mujoco.mjtStage.mjSTAGE_ACC:
+            x[m.sensor_adr[i]: m.sensor_adr[i] + m.sensor_dim[i]] = np.nan
+    assert np.isnan(x).any() == (scene == "free-flight")  # the accelerometer is there; the stand's cell is not one
+    walked = 0
+    for name, cls in SENSORS.items():
+        if cls.field != "sensordata" or name not in sim.sensors:
+            continue
+        walked += 1
+        assert np.isnan(sim.sensors[name].read(x)).any() == cls.acceleration_stage, name
+    assert walked == (3 if scene == "free-flight" else 1)
+
+
 @pytest.mark.parametrize("vehicle", ["tuhh-quad", "anteos-p2a2"])
 def test_every_sensor_reads_one_simulation_as_floats_bit_for_bit(vehicle):
     """The simulator's per-tick path (Sensor.read_floats, SensorSuite.sample of one simulation) gives the very

@@ -1,6 +1,7 @@
 """Headless runs, logs, determinism, CLI, and bad input of the simulation core."""
 
 import json
+import math
 
 import mujoco
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from rotorlab.cli import main
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import build_scene
+from rotorlab.sim.control.statespace import ControllerSpec
 from rotorlab.sim.disturbances import DrydenWind, InputDisturbanceStep, MeanWind, RecirculationMoment, RopePull
 from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.simulator import Simulator, air_motion_map, body_wind, set_air_motion, set_wind
@@ -132,20 +134,38 @@ def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle, scene, dists):
     and velocity stages for the next physics step as far as the disturbances' Disturbance.stage allows, and skips
     the sensors between ticks), gives the state, sensors and actuator forces of MuJoCo's plain steps bit for bit
     under changing commands; a bad state still stops the run."""
-    ref, plain, fast = (Simulator(scene, vehicle, sensor_noise=False, disturbances=dists()) for _ in range(3))
+    ref, plain, fast, lean = (Simulator(scene, vehicle, sensor_noise=False, disturbances=dists()) for _ in range(4))
+    # lean: nothing reads the acceleration stage at the tick, which the regrouped tick then skips (the rope's
+    # tension sensor keeps it on its rig): the same state and position/velocity-stage sensors, no accelerometer
+    lean.forces_at_tick = False
+    m = lean.model
+    acc = np.zeros(m.nsensordata, bool)
+    for i in range(m.nsensor):
+        if m.sensor_needstage[i] == mujoco.mjtStage.mjSTAGE_ACC:
+            acc[m.sensor_adr[i]: m.sensor_adr[i] + m.sensor_dim[i]] = True
+    assert lean._force_sensors == bool(dists() and isinstance(dists()[0], RopePull))
     rng = np.random.default_rng(0)
     for _ in range(40):
         cmd = plain.vehicle.hover_collective_pct + rng.uniform(-3.0, 3.0, 4)
-        for sim in (ref, plain, fast):
+        for sim in (ref, plain, fast, lean):
             sim.set_commands(cmd)
         _plain_mujoco_tick(ref)
         plain.tick()
         fast.tick(controls_only=True)
+        lean.tick(controls_only=True)
         for sim in (plain, fast):
             for field in ("qpos", "qvel", "act", "sensordata", "actuator_force", "xquat"):
                 assert np.array_equal(getattr(ref.data, field), getattr(sim.data, field)), field
             assert sim.model.opt.disableflags == 0
-    assert fast.check() is None
+        for field in ("qpos", "qvel", "act", "xquat"):
+            assert np.array_equal(getattr(ref.data, field), getattr(lean.data, field)), field
+        assert np.array_equal(ref.data.sensordata[~acc], lean.data.sensordata[~acc])
+        if lean.imu is not None:
+            got, want = lean.measure(), fast.measure()
+            assert all(math.isnan(got[c]) for c in lean.acc_channels) and len(lean.acc_channels) == 3
+            assert {k: v for k, v in got.items() if k not in lean.acc_channels} == \
+                {k: v for k, v in want.items() if k not in lean.acc_channels}
+    assert fast.check() is None and lean.check() is None
     fast.data.qvel[0] = np.nan
     fast.tick(controls_only=True)
     assert "mjWARN_BADQ" in fast.check()
@@ -222,6 +242,30 @@ def test_rotor_aerodynamics_see_rotation_relative_to_the_air(vehicle):
         assert np.linalg.norm(damped) > 1e-3  # the rotors do damp this turn
         np.testing.assert_allclose(rot_acc(w, w), rest, rtol=0, atol=1e-12 * np.abs(rest).max() + 1e-12)
         np.testing.assert_allclose(rot_acc(np.zeros(3), w) - rest, -damped, rtol=1e-9, atol=1e-12)
+
+
+def test_runs_skip_the_acceleration_pass_at_the_tick_only_where_nothing_reads_it(monkeypatch):
+    """The runner turns Simulator.forces_at_tick off when nothing of the run reads acceleration-stage data: a
+    hover in position hold then runs no acceleration pass at its ticks and logs the same floats as the run that
+    keeps it for a pose recording (the rotor thrusts); a controller flying on the accelerometer gets the pass
+    and finite readings."""
+    calls = []
+    skip = mujoco.mj_forwardSkip
+    monkeypatch.setattr(mujoco, "mj_forwardSkip", lambda *a: (calls.append(a[2]), skip(*a)))
+    kw = dict(scene="free-flight", duration_s=2.0, seed=1)
+    lean = run_scenario("rest", "anteos-p2a2", **kw)
+    assert calls == []
+    full = run_scenario("rest", "anteos-p2a2", record_poses=True, **kw)
+    assert len(calls) == 100
+    assert lean.log.columns == full.log.columns
+    for c in lean.log.columns:
+        assert np.array_equal(lean.log[c], full.log[c]), c
+    calls.clear()
+    # u_lon = 0 * az (the cascade keeps the other axes): NaN would reach the rotors if az were not computed
+    spec = ControllerSpec(name="on-az", dt_s=0.02, inputs=("az",), outputs=("u_lon",), A=np.zeros((0, 0)),
+                          B=np.zeros((0, 1)), C=np.zeros((1, 0)), D=np.zeros((1, 1)))
+    r = run_scenario("rest", "anteos-p2a2", controller=spec, **kw)
+    assert r.stopped is None and len(calls) == 100 and np.all(r.log["u_lon"] == 0.0)
 
 
 def test_cli_list_and_run(tmp_path, capsys):

@@ -46,6 +46,9 @@ class Sensor:
     channels: dict = {}
     #: the MjData field :meth:`read` takes
     field: str = "sensordata"
+    #: its MuJoCo data is computed in the acceleration stage (a force or an acceleration): current at a tick
+    #: only when the tick ends with that stage (:attr:`rotorlab.sim.simulator.Simulator.forces_at_tick`)
+    acceleration_stage: bool = False
 
     def __init__(self, model, vehicle):
         self.noise_std = np.zeros(len(self.channels))  # per channel, in the channel's unit

@@ -15,6 +15,7 @@ _KX, _KY, _KZ = FLU_TO_FRD.tolist()  # unpacked: read_floats runs every tick
 class ImuAccelerometer(Sensor):
     name = "imu-accelerometer"
     channels = {"ax": "m/s^2", "ay": "m/s^2", "az": "m/s^2"}
+    acceleration_stage = True
 
     def __init__(self, model, vehicle):
         super().__init__(model, vehicle)
