@@ -21,8 +21,9 @@ more pairs for the time but weigh the fixed cost of a run, the model build, twic
 
 For reading the first ratio: the simulator has MuJoCo skip the sensors in the physics steps between ticks (they
 are read at the tick only; :meth:`rotorlab.sim.simulator.Simulator.tick`), which raw ``mj_step`` of the model
-computes in every step. The script prints the raw speed with the sensors off too, the physics the closed loop
-actually runs, and the closed loop's speed against it.
+computes in every step, and in this run, where nothing reads the accelerometer, it skips the acceleration pass at
+the tick too (``Simulator.forces_at_tick``). The script prints the raw speed with the sensors off too, the physics
+the closed loop actually runs, and the closed loop's speed against it.
 """
 
 import statistics
