@@ -422,10 +422,10 @@ class Simulator:
 
         :attr:`forces_at_tick` off (the runner, when nothing of the run reads them): the regrouped tick skips
         the acceleration pass at its end, which only the acceleration-stage readings need (the next physics
-        step computes that stage under the new controls anyway): about 5 % of a tick in free flight. The state,
-        the position- and velocity-stage sensors and the physics are the same bit for bit; :meth:`measure` gives
-        NaN for the accelerometer's channels, and a model with another acceleration-stage sensor (a
-        disturbance's force sensor) keeps the pass.
+        step computes that stage under the new controls anyway): about 2 % of a hover run's time (in-process
+        A/B, 20 pairs). The state, the position- and velocity-stage sensors and the physics are the same bit for
+        bit; :meth:`measure` gives NaN for the accelerometer's channels, and a model with another
+        acceleration-stage sensor (a disturbance's force sensor) keeps the pass.
         """
         m, d = self.model, self.data
         regroup = controls_only
@@ -481,8 +481,9 @@ class Simulator:
     def measure(self, out: dict | None = None) -> dict:
         """IMU readings at this tick in flight-software units (:data:`rotorlab.sim.sensors.IMU`), with seeded noise
         and bias when enabled: ``phi, theta, psi`` (deg), ``p, q, r`` (deg/s), ``ax, ay, az`` (m/s^2, body FRD;
-        NaN with :attr:`forces_at_tick` off), and for outer loops ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s, NED) from the position sensor (truth,
-        noise-free). Into ``out`` when given (the runner's signal dict), else into a new dict; returns it."""
+        NaN with :attr:`forces_at_tick` off), and for outer loops ``x, y, z`` (m, NED) and ``vx, vy, vz`` (m/s,
+        NED) from the position sensor (truth, noise-free). Into ``out`` when given (the runner's signal dict), else
+        into a new dict; returns it."""
         # one draw per tick for all noisy channels keeps the stream (and so the log) seed-determined
         out = self.imu.sample(self._sd_mv, self._noise if self.sensor_noise else None, out)
         if not self.forces_at_tick:  # not computed at this tick (tick): NaN, never a stale reading
