@@ -301,12 +301,12 @@ class Simulator:
         #: the tick ends with the acceleration stage under the held controls, so the accelerometer, force sensors
         #: and actuator forces are current at the tick; :meth:`tick` says what turning it off saves and costs
         self.forces_at_tick = True
+        imu_acc = [s for s in (self.imu.sensors if self.imu else ()) if s.acceleration_stage]
         #: the IMU channels measured in the acceleration stage (the accelerometer's)
-        self.acc_channels = [c for s in (self.imu.sensors if self.imu else ()) if s.acceleration_stage
-                             for c in s.channels]
-        imu_acc = {s.slice.start for s in (self.imu.sensors if self.imu else ()) if s.acceleration_stage}
+        self.acc_channels = [c for s in imu_acc for c in s.channels]
         # another acceleration-stage MuJoCo sensor (a disturbance's force sensor) keeps the pass whatever the flag
-        self._force_sensors = any(int(m.sensor_needstage[i]) == _STAGE_ACC and int(m.sensor_adr[i]) not in imu_acc
+        imu_adr = {s.slice.start for s in imu_acc}
+        self._force_sensors = any(int(m.sensor_needstage[i]) == _STAGE_ACC and int(m.sensor_adr[i]) not in imu_adr
                                   for i in range(m.nsensor))
         self._bearing = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_bearing")
         self._mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "rig_mount")
