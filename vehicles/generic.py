@@ -250,7 +250,7 @@ accel_noise_mps2 = 0.05
 def write_new_vehicle(path, name: str, **numbers) -> VehicleSpec:
     """Write :func:`new_vehicle_toml` atomically to ``path`` and return the loaded vehicle."""
     path = Path(path)
-    text = new_vehicle_toml(name, src=path, **numbers)
+    text = new_vehicle_toml(name, src=f"{path} (not written)", **numbers)
     atomic.write_text(path, text)
     return parse_vehicle(tomllib.loads(text), path, PHYSICS_DT_S)
 

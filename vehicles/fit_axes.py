@@ -1,0 +1,262 @@
+"""Calibrate a multirotor twin to per-axis rate models (identified from a flight log, or any LTI model).
+
+The target of each axis is a model from axis command (%, the flight software's units) to body rate (deg/s,
+aerospace signs), continuous or discrete, with an optional transport delay. The twin's model is its own true
+linearisation in free flight (``rotorlab.sim.linearize``), so everything the twin has (IMU mount, rotor drag,
+rotor-inertia yaw reaction) stays in; what is fitted are the physical parameters a rate response determines:
+
+* the principal moments of inertia (one per fitted axis),
+* the motor time constant ``lag_s`` (one per rotor group, see below),
+* the transport delay ``delay_s`` (one per rotor group).
+
+Rotor groups: in the plus layout roll is driven by rotors 2/4 and pitch by rotors 1/3 only, so each pair gets
+its own motor pole and delay (ref. 002 identifies them per axis); in the X and hexa layouts every rotor drives both
+axes, so one pole and one delay are shared. The torque gain is held at the thrust-stand value: a rate response
+fixes only the ratio torque gain / inertia per axis (``b`` of ``b / s``), so fitting both would be unidentifiable;
+a gain error therefore shows up as an inertia error of the same ratio (the rate response is still right).
+
+The fit is a bounded least-squares on the log of the frequency-response ratio (real part: gain, imaginary: phase)
+over :data:`W_FIT_RAD_S`, 1-30 rad/s (scipy.optimize.least_squares); the bounds keep the parameters physical
+(:data:`INERTIA_FACTOR_RANGE` of the start, :data:`LAG_RANGE_S`, :data:`DELAY_RANGE_S`), and the inertia the
+triangle inequality (checked when the result is loaded). During the fit the delay is a continuous factor
+``exp(-j w T_d)`` on the delay-free linearisation; the result rounds it to whole physics steps (MuJoCo realises
+it with its actuator history) and the reported residual is the rounded twin's exact linearisation.
+
+Examples
+--------
+>>> import control as ct
+>>> from rotorlab.vehicles import load_vehicle
+>>> from rotorlab.vehicles.fit_axes import calibrate_axes
+>>> v = load_vehicle("x500")
+>>> target = ct.tf([93.3], [0.02, 1.0, 0.0])  # deg/s per %: b / (s (tau s + 1))
+>>> result = calibrate_axes(v, {"roll": target, "pitch": target})  # doctest: +SKIP
+>>> result.max_error_db, result.max_error_deg  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import scipy.optimize as so
+
+from rotorlab import atomic, lti
+from rotorlab.errors import ConfigError
+from rotorlab.scenes import PHYSICS_DT_S
+from rotorlab.sim.linearize import linearize
+
+from .spec import VehicleSpec, load_vehicle_file
+
+AXES = ("roll", "pitch", "yaw")
+INERTIA_INDEX = {"roll": 0, "pitch": 1, "yaw": 2}
+W_FIT_RAD_S = np.logspace(0.0, math.log10(30.0), 25)
+INERTIA_FACTOR_RANGE = (1.0 / 3.0, 3.0)  # of the starting value: a geometry estimate is good to a factor of 3
+LAG_RANGE_S = (0.002, 0.2)  # motor time constants of flying multirotors
+DELAY_RANGE_S = (0.0, 0.1)  # flight-stack delays; more is no flyable aircraft
+
+
+def rotor_groups(v: VehicleSpec) -> dict:
+    """Rotor groups (0-based rotor indices) that share one motor pole and delay, and the axis each group
+    drives alone (None: shared by every axis)."""
+    if v.frame == "quad-plus":
+        return {"pitch": (0, 2), "roll": (1, 3)}
+    return {None: tuple(range(v.n_rotors))}
+
+
+def _axis_groups(groups: dict, axis: str) -> list:
+    """The groups that drive ``axis``: its own group in the plus layout, else every group."""
+    return [axis] if axis in groups else list(groups)
+
+
+@dataclasses.dataclass(frozen=True)
+class AxisResidual:
+    """Frequency-by-frequency residual of one axis: twin / target, in dB and deg, at ``w_rad_s``."""
+
+    axis: str
+    w_rad_s: np.ndarray
+    error_db: np.ndarray
+    error_deg: np.ndarray
+
+    @property
+    def max_db(self) -> float:
+        return float(np.max(np.abs(self.error_db)))
+
+    @property
+    def max_deg(self) -> float:
+        return float(np.max(np.abs(self.error_deg)))
+
+
+@dataclasses.dataclass(frozen=True)
+class Calibration:
+    """Result of :func:`calibrate_axes`: the calibrated vehicle, its fitted values, and residuals before/after."""
+
+    vehicle: VehicleSpec
+    inertia_kgm2: tuple
+    lag_s: tuple  # per rotor
+    delay_s: tuple  # per rotor, whole physics steps
+    residual: dict  # axis -> AxisResidual of the calibrated twin
+    residual_start: dict  # axis -> AxisResidual of the starting twin
+    cost_evaluations: int
+
+    @property
+    def max_error_db(self) -> float:
+        return max(r.max_db for r in self.residual.values())
+
+    @property
+    def max_error_deg(self) -> float:
+        return max(r.max_deg for r in self.residual.values())
+
+    def table(self) -> str:
+        """The residual over frequency, one row per frequency, columns dB and deg per axis (plain text)."""
+        axes = list(self.residual)
+        head = "w rad/s " + " ".join(f"{a + ' dB':>9} {a + ' deg':>9}" for a in axes)
+        rows = [head]
+        w = self.residual[axes[0]].w_rad_s
+        for k, wk in enumerate(w):
+            rows.append(f"{wk:7.2f} " + " ".join(f"{self.residual[a].error_db[k]:9.3f} {self.residual[a].error_deg[k]:9.3f}"
+                                                 for a in axes))
+        return "\n".join(rows)
+
+
+def _target_response(target, w) -> np.ndarray:
+    model, delay_s = target if isinstance(target, tuple) else (target, 0.0)
+    return lti.freqresp(model, w)[:, 0, 0] * np.exp(-1j * w * float(delay_s))
+
+
+def _with(v: VehicleSpec, inertia, lag, delay) -> VehicleSpec:
+    rotor = dataclasses.replace(v.rotor, lag_s=tuple(float(x) for x in lag), delay_s=tuple(float(x) for x in delay))
+    return dataclasses.replace(v, inertia_kgm2=tuple(float(x) for x in inertia), rotor=rotor)
+
+
+def twin_response(v: VehicleSpec, axes, w, delay: bool = True) -> dict:
+    """The twin's free-flight rate response per axis (axis command % -> gyro deg/s) at ``w`` rad/s."""
+    G = linearize("free-flight", v, list(axes), [f"gyro_{a}" for a in axes], delay=delay)
+    H = lti.freqresp(G, w)
+    return {a: H[:, i, i] for i, a in enumerate(axes)}
+
+
+def _residual(axis, w, twin, target) -> AxisResidual:
+    r = np.log(twin / target)
+    return AxisResidual(axis, np.asarray(w), 20.0 / math.log(10.0) * r.real, np.degrees(r.imag))
+
+
+def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S) -> Calibration:
+    """Fit the twin's inertia, motor poles and delays to per-axis rate models.
+
+    Parameters
+    ----------
+    vehicle : VehicleSpec
+        The starting twin (e.g. written by ``rotorlab vehicle new``): right mass, geometry and rotor.
+    targets : dict
+        ``{axis: model}`` or ``{axis: (model, delay_s)}`` for any of ``roll``, ``pitch``, ``yaw``: a
+        python-control LTI model (continuous or discrete) from axis command (%) to rate (deg/s); an axis not given
+        keeps its inertia.
+    w_rad_s : array
+        Fit frequencies, rad/s (default 25 points log-spaced over 1-30).
+
+    Returns
+    -------
+    Calibration
+        The calibrated vehicle (delays in whole physics steps) and its residual over frequency, dB and deg.
+    """
+    axes = [a for a in AXES if a in targets]
+    if not axes or set(targets) - set(AXES):
+        raise ConfigError("calibration targets", field="targets", expected=f"models for some of {AXES}",
+                          got=sorted(targets))
+    w = np.asarray(w_rad_s, dtype=float)
+    goal = {a: _target_response(targets[a], w) for a in axes}
+    groups = rotor_groups(vehicle)
+    names = list(groups)
+    n_i, n_g = len(axes), len(names)
+    i0 = np.array([vehicle.inertia_kgm2[INERTIA_INDEX[a]] for a in axes])
+    lag0 = np.array([np.mean([vehicle.rotor.lag_s[k] for k in groups[g]]) for g in names])
+    del0 = np.array([np.mean([vehicle.rotor.delay_s[k] for k in groups[g]]) for g in names])
+
+    def unpack(x):
+        inertia = list(vehicle.inertia_kgm2)
+        for a, val in zip(axes, np.exp(x[:n_i]), strict=True):
+            inertia[INERTIA_INDEX[a]] = val
+        lag, delay = list(vehicle.rotor.lag_s), list(vehicle.rotor.delay_s)
+        for g, lg, dg in zip(names, np.exp(x[n_i:n_i + n_g]), x[n_i + n_g:], strict=True):
+            for k in groups[g]:
+                lag[k], delay[k] = lg, dg
+        return inertia, lag, delay
+
+    cache = {}
+
+    def undelayed(key):
+        # the delay-free linearisation depends on inertia and lags only: the delay's finite differences reuse it
+        if key not in cache:
+            inertia, lag, delay = unpack(np.array(key + (0.0,) * n_g))
+            cache[key] = twin_response(_with(vehicle, inertia, lag, delay), axes, w, delay=False)
+        return cache[key]
+
+    def resid(x):
+        H = undelayed(tuple(float(v) for v in x[:n_i + n_g]))
+        out = []
+        for a in axes:
+            td = np.mean([x[n_i + n_g + names.index(g)] for g in _axis_groups(groups, a)])
+            r = np.log(H[a] * np.exp(-1j * w * td) / goal[a])
+            out += [r.real, r.imag]
+        return np.concatenate(out)
+
+    x0 = np.concatenate([np.log(i0), np.log(lag0), del0])
+    lo = np.concatenate([np.log(i0 * INERTIA_FACTOR_RANGE[0]), np.full(n_g, math.log(LAG_RANGE_S[0])),
+                         np.full(n_g, DELAY_RANGE_S[0])])
+    hi = np.concatenate([np.log(i0 * INERTIA_FACTOR_RANGE[1]), np.full(n_g, math.log(LAG_RANGE_S[1])),
+                         np.full(n_g, DELAY_RANGE_S[1])])
+    x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    # x_scale: a unit step is a factor e in inertia and lag and 10 ms of delay, so the trust region moves all
+    # three alike; the tolerances let it walk the lag-delay valley to its end (xtol stops it early otherwise)
+    sol = so.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.concatenate([np.ones(n_i + n_g),
+                                                                              np.full(n_g, 0.01)]),
+                           diff_step=1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    inertia, lag, delay = unpack(sol.x)
+    delay = [round(d / PHYSICS_DT_S) * PHYSICS_DT_S for d in delay]
+    fitted = _with(vehicle, inertia, lag, delay)
+    after = twin_response(fitted, axes, w)
+    before = twin_response(vehicle, axes, w)
+    return Calibration(
+        vehicle=fitted, inertia_kgm2=tuple(fitted.inertia_kgm2), lag_s=tuple(fitted.rotor.lag_s),
+        delay_s=tuple(fitted.rotor.delay_s),
+        residual={a: _residual(a, w, after[a], goal[a]) for a in axes},
+        residual_start={a: _residual(a, w, before[a], goal[a]) for a in axes},
+        cost_evaluations=int(sol.nfev))
+
+
+def _set_key(lines: list, section: str, key: str, value: str, note: str) -> None:
+    """Replace ``key = ...`` in ``[section]`` of TOML ``lines`` (one-line values), or add it after the header."""
+    current, header_at = None, None
+    for i, line in enumerate(lines):
+        m = re.match(r"\s*\[([^\]]+)\]", line)
+        if m:
+            current = m.group(1).strip()
+            if current == section:
+                header_at = i
+            continue
+        if current == section and re.match(rf"\s*{re.escape(key)}\s*=", line):
+            lines[i] = f"{key} = {value}  # {note}"
+            return
+    if header_at is None:
+        raise ConfigError("the vehicle file has no such table", field=section, expected=f"[{section}]")
+    lines.insert(header_at + 1, f"{key} = {value}  # {note}")
+
+
+def write_calibrated(source, result: Calibration, out, note: str = "calibrated (rotorlab.vehicles.fit_axes)") -> Path:
+    """Write ``source`` (a vehicle TOML) with the calibrated inertia, lags and delays to ``out`` (atomically),
+    every other line and comment kept; the written file is read back (triangle inequality, delay steps)."""
+    source, out = Path(source), Path(out)
+    lines = source.read_text(encoding="utf-8").splitlines()
+
+    def vec(xs):
+        return "[" + ", ".join(repr(float(x)) for x in xs) + "]"
+
+    _set_key(lines, "airframe", "inertia_kgm2", vec(result.inertia_kgm2), note)
+    _set_key(lines, "rotor", "lag_s", vec(result.lag_s), note)
+    _set_key(lines, "rotor", "delay_s", vec(result.delay_s), note)
+    atomic.write_text(out, "\n".join(lines) + "\n")
+    load_vehicle_file(out, PHYSICS_DT_S)
+    return out
