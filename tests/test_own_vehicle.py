@@ -169,3 +169,54 @@ def test_calibration_recovers_tuhh_quad_from_30_percent_off(tmp_path):
     back = load_vehicle(out)
     assert back.inertia_kgm2 == c.inertia_kgm2 and back.rotor.lag_s == c.lag_s
     assert "calibrated" in next(ln for ln in out.read_text().splitlines() if ln.startswith("inertia_kgm2"))
+
+
+def test_vehicle_calibrate_cli_fits_model_files(tmp_path, capsys):
+    """rotorlab vehicle calibrate with model JSON files (as rotorlab ident writes them): delay-free models plus their
+    delay, roll and pitch only; yaw's inertia is not fitted and stays as it was."""
+    from rotorlab.ident.modelio import save_model
+
+    truth = load_vehicle("tuhh-quad")
+    argv = ["vehicle", "calibrate"]
+    for axis, delay_s in (("roll", 0.024), ("pitch", 0.028)):
+        path = tmp_path / f"{axis}.json"
+        save_model(path, linearize("free-flight", truth, axis, f"gyro_{axis}", delay=False), delay_s=delay_s)
+        argv += ["--model", f"{axis}={path}"]
+    text = (VEHICLES_DIR / "tuhh-quad" / "vehicle.toml").read_text().split("[rig.pitch]")[0]
+    start = tmp_path / "start.toml"
+    start.write_text(text.replace("inertia_kgm2 = [0.0181, 0.0196, 0.0273]", "inertia_kgm2 = [0.013, 0.026, 0.03]"))
+    out = tmp_path / "cal.toml"
+    assert main([*argv, str(start), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "roll: max" in printed and "w rad/s" in printed
+    v = load_vehicle(out)
+    assert v.inertia_kgm2[:2] == pytest.approx(truth.inertia_kgm2[:2], rel=0.02) and v.inertia_kgm2[2] == 0.03
+    assert main(["vehicle", "calibrate", str(start), "--model", "pitch", "--out", str(out)]) == 2
+
+
+def test_vehicle_new_fits_a_thrust_stand_table(tmp_path):
+    """A thrust-stand sweep generated from the TUHH rotor (ref. 002 eqs. 3-5) gives back its C_T, C_Q, speed map
+    and hover command, and the twin's pitch torque gain equals the TUHH twin's."""
+    tuhh = load_vehicle("tuhh-quad")
+    r = tuhh.rotor
+    b = np.linspace(0.1, 1.0, 19)
+    w = r.speed(b)
+    k_T = r.thrust_coefficient * RHO_AIR * math.pi * r.radius_m**4
+    k_Q = r.torque_coefficient * RHO_AIR * math.pi * r.radius_m**5
+    csv = tmp_path / "stand.csv"
+    csv.write_text("command,speed_rad_s,thrust_N,torque_Nm\n"
+                   + "".join(f"{x!r},{y!r},{k_T * y * y!r},{k_Q * y * y!r}\n"
+                             for x, y in zip(b.tolist(), w.tolist(), strict=True)))
+    out = tmp_path / "stand.toml"
+    assert main(["vehicle", "new", "stand", "--frame", "quad-plus", "--mass-kg", str(tuhh.mass_kg), "--arm-m",
+                 str(tuhh.arm_m), "--prop-in", str(2 * r.radius_m / 0.0254), "--inertia", *map(str, tuhh.inertia_kgm2),
+                 "--thrust-stand", str(csv), "--out", str(out)]) == 0
+    v = load_vehicle(out)
+    assert v.rotor.thrust_coefficient == pytest.approx(r.thrust_coefficient, rel=1e-9)
+    assert v.rotor.torque_coefficient == pytest.approx(r.torque_coefficient, rel=1e-9)
+    assert v.rotor.speed_map == pytest.approx(r.speed_map, rel=1e-5)
+    assert v.rotor.hover_command == pytest.approx(r.hover_command, rel=1e-4)
+    assert _hand_rate_gain(v, "pitch") == pytest.approx(_hand_rate_gain(tuhh, "pitch"), rel=1e-4)
+    assert main(["vehicle", "new", "stand", "--frame", "quad-plus", "--mass-kg", "1", "--arm-m", "0.2",
+                 "--prop-in", "10", "--kv", "900", "--cells", "3", "--thrust-stand", str(csv),
+                 "--out", str(out)]) == 2

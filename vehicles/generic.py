@@ -35,9 +35,12 @@ import math
 import tomllib
 from pathlib import Path
 
+import numpy as np
+
 from rotorlab import atomic
 from rotorlab.errors import ConfigError
 from rotorlab.gains import AxisGains, GainSet, LoopGains
+from rotorlab.ident.rotor import fit_speed_map, fit_thrust_coefficient, fit_torque_coefficient
 
 from .spec import FRAMES, G0, RHO_AIR, VehicleSpec, parse_vehicle
 
@@ -68,7 +71,7 @@ def new_vehicle_toml(name: str, *, frame: str, mass_kg: float, arm_m: float, pro
                      thrust_coefficient: float | None = None, torque_coefficient: float | None = None,
                      motor_tau_s: float | None = None, delay_s: float | None = None,
                      inertia_kgm2=None, rotor_inertia_kgm2: float = 0.0, rate_hz: float = 250.0,
-                     src="<vehicle new>") -> str:
+                     thrust_stand: dict | None = None, src="<vehicle new>") -> str:
     """The vehicle TOML text of a generic variable-RPM multirotor, every estimated number with its formula.
 
     Parameters
@@ -93,6 +96,10 @@ def new_vehicle_toml(name: str, *, frame: str, mass_kg: float, arm_m: float, pro
         Propeller + motor bell about the spin axis (0: the spin-up yaw reaction is left out).
     rate_hz : float
         Flight-software rate; its period must be a whole number of 1 ms physics steps.
+    thrust_stand : dict, optional
+        A thrust-stand sweep ``{"command": b in [0, 1], "speed_rad_s", "thrust_N"[, "torque_Nm"], "source": name}``
+        (arrays): ``C_T``, ``C_Q`` and the power-law speed map ``Omega(b) = a0 b^a1 + a2`` are fitted to it
+        (``rotorlab.ident.rotor``) in place of the estimates; excludes the other motor and propeller numbers.
 
     Returns
     -------
@@ -115,44 +122,64 @@ def new_vehicle_toml(name: str, *, frame: str, mass_kg: float, arm_m: float, pro
         raise ConfigError("neighbouring propellers overlap: the diameter must not exceed 2 arm sin(pi/n)",
                           field="prop_in", expected=f"<= {2 * arm * math.sin(math.pi / n) / INCH_M:.3g} inch",
                           got=prop_in)
-    lines_rotor = []
-    if thrust_coefficient is None:
-        ct = 4.0 * STATIC_CT / math.pi**3
-        lines_rotor.append(f"thrust_coefficient = {_fmt(ct)}  # 4 c_T / pi^3, UIUC static c_T = {STATIC_CT} (estimate)")
-    else:
-        ct = _positive("thrust_coefficient", thrust_coefficient, "the thrust coefficient C_T")
-        lines_rotor.append(f"thrust_coefficient = {_fmt(ct)}  # given (thrust stand)")
-    if torque_coefficient is None:
-        cq = 4.0 * STATIC_CP / math.pi**4
-        lines_rotor.append(f"torque_coefficient = {_fmt(cq)}  # 4 c_P / pi^4, UIUC static c_P = {STATIC_CP} (estimate)")
-    else:
-        cq = _positive("torque_coefficient", torque_coefficient, "the torque coefficient C_Q")
-        lines_rotor.append(f"torque_coefficient = {_fmt(cq)}  # given (thrust stand)")
-    k_thrust = ct * RHO_AIR * math.pi * R**4
     weight = m * G0
-    if max_speed_rad_s is not None:
-        w_max = _positive("max_speed_rad_s", max_speed_rad_s, "the maximum rotor speed")
-        w_note, w_field = "given", "max_speed_rad_s"
-    elif kv is not None or cells is not None:
-        kv_ = _positive("kv", kv, "the motor velocity constant (rpm/V), given with cells")
-        if not isinstance(cells, int) or isinstance(cells, bool) or cells < 1:
-            raise ConfigError("the LiPo cell count, given with kv", field="cells", expected="a whole number >= 1",
-                              got=cells)
-        w_max = LOADED_SPEED_FRACTION * kv_ * 2.0 * math.pi / 60.0 * cells * CELL_VOLTAGE_V
-        w_note = (f"{LOADED_SPEED_FRACTION} kv 2 pi/60 cells {CELL_VOLTAGE_V} V = {LOADED_SPEED_FRACTION} x {kv_:g}"
-                  f" x 2 pi/60 x {cells} x {CELL_VOLTAGE_V} (estimate)")
-        w_field = "kv"
+    if thrust_stand is not None:
+        given = [k for k, x in (("kv", kv), ("cells", cells), ("max_speed_rad_s", max_speed_rad_s),
+                                ("thrust_coefficient", thrust_coefficient),
+                                ("torque_coefficient", torque_coefficient)) if x is not None]
+        if given:
+            raise ConfigError("the thrust stand gives the motor and propeller numbers", field=given[0],
+                              expected="either a thrust-stand table or these numbers", got="both")
+        ct, cq, (a0, a1, a2), lines_rotor, w_note = _thrust_stand(thrust_stand, R)
+        w_field = "thrust_stand"
+        k_thrust = ct * RHO_AIR * math.pi * R**4
+        w_max = a0 + a2
     else:
-        w_max = math.sqrt(DEFAULT_THRUST_TO_WEIGHT * weight / (n * k_thrust))
-        w_note = f"sqrt({DEFAULT_THRUST_TO_WEIGHT} m g / (n k_T)): thrust-to-weight {DEFAULT_THRUST_TO_WEIGHT} (estimate)"
-        w_field = "max_speed_rad_s"
+        lines_rotor = []
+        if thrust_coefficient is None:
+            ct = 4.0 * STATIC_CT / math.pi**3
+            lines_rotor.append(f"thrust_coefficient = {_fmt(ct)}  # 4 c_T / pi^3, UIUC static c_T = {STATIC_CT} "
+                               "(estimate)")
+        else:
+            ct = _positive("thrust_coefficient", thrust_coefficient, "the thrust coefficient C_T")
+            lines_rotor.append(f"thrust_coefficient = {_fmt(ct)}  # given (thrust stand)")
+        if torque_coefficient is None:
+            cq = 4.0 * STATIC_CP / math.pi**4
+            lines_rotor.append(f"torque_coefficient = {_fmt(cq)}  # 4 c_P / pi^4, UIUC static c_P = {STATIC_CP} "
+                               "(estimate)")
+        else:
+            cq = _positive("torque_coefficient", torque_coefficient, "the torque coefficient C_Q")
+            lines_rotor.append(f"torque_coefficient = {_fmt(cq)}  # given (thrust stand)")
+        k_thrust = ct * RHO_AIR * math.pi * R**4
+        if max_speed_rad_s is not None:
+            w_max = _positive("max_speed_rad_s", max_speed_rad_s, "the maximum rotor speed")
+            w_note, w_field = "Omega_max given", "max_speed_rad_s"
+        elif kv is not None or cells is not None:
+            kv_ = _positive("kv", kv, "the motor velocity constant (rpm/V), given with cells")
+            if not isinstance(cells, int) or isinstance(cells, bool) or cells < 1:
+                raise ConfigError("the LiPo cell count, given with kv", field="cells",
+                                  expected="a whole number >= 1", got=cells)
+            w_max = LOADED_SPEED_FRACTION * kv_ * 2.0 * math.pi / 60.0 * cells * CELL_VOLTAGE_V
+            w_note = (f"Omega_max = {LOADED_SPEED_FRACTION} kv 2 pi/60 cells {CELL_VOLTAGE_V} V = "
+                      f"{LOADED_SPEED_FRACTION} x {kv_:g} x 2 pi/60 x {cells} x {CELL_VOLTAGE_V} (estimate)")
+            w_field = "kv"
+        else:
+            w_max = math.sqrt(DEFAULT_THRUST_TO_WEIGHT * weight / (n * k_thrust))
+            w_note = (f"Omega_max = sqrt({DEFAULT_THRUST_TO_WEIGHT} m g / (n k_T)): thrust-to-weight "
+                      f"{DEFAULT_THRUST_TO_WEIGHT} (estimate)")
+            w_field = "max_speed_rad_s"
+        a0, a1, a2 = w_max, 1.0, 0.0
+        w_note = f"Omega(b) = Omega_max b rad/s (linear ESC), {w_note}"
     t_max = n * k_thrust * w_max**2
     if t_max <= weight:
         raise ConfigError("the rotors cannot lift the vehicle: n k_T Omega_max^2 must exceed m g", field=w_field,
                           expected=f"thrust at full speed > weight {weight:.4g} N",
                           got=f"{t_max:.4g} N at Omega_max {w_max:.4g} rad/s")
     w_hover = math.sqrt(weight / (n * k_thrust))
-    b_hover = w_hover / w_max
+    if w_hover <= a2:
+        raise ConfigError("the motors idle faster than hover: Omega(0) = a2 must be below the hover speed",
+                          field=w_field, expected=f"a2 < {w_hover:.4g} rad/s", got=a2)
+    b_hover = ((w_hover - a2) / a0) ** (1.0 / a1)
     tau = DEFAULT_MOTOR_TAU_S if motor_tau_s is None else _positive("motor_tau_s", motor_tau_s,
                                                                      "the motor time constant")
     if delay_s is None:
@@ -219,8 +246,9 @@ flap_arm_m = 0.0  # rigid propellers: no hub moment
 lag_s = {_fmt(tau)}  # motor time constant, {"given" if motor_tau_s is not None else "typical (estimate)"}
 delay_s = {_fmt(delay)}  # transport delay, {delay_note}
 {chr(10).join(lines_rotor)}
-speed_map = [{_fmt(w_max)}, 1.0, 0.0]  # Omega(b) = Omega_max b rad/s, Omega_max = {w_note}
-hover_command = {_fmt(b_hover)}  # b_H = sqrt(m g / (n k_T)) / Omega_max, k_T = C_T rho pi R^4 = {k_thrust:.6g} N/(rad/s)^2
+speed_map = [{_fmt(a0)}, {_fmt(a1)}, {_fmt(a2)}]  # {w_note}
+# k_T = C_T rho pi R^4 = {k_thrust:.6g} N/(rad/s)^2, hover speed Omega_H = sqrt(m g / (n k_T)) = {w_hover:.6g} rad/s
+hover_command = {_fmt(b_hover)}  # b_H = ((Omega_H - a2) / a0)^(1/a1)
 inertia_kgm2 = {_fmt(rotor_inertia_kgm2)}  # propeller + motor bell about the spin axis{"" if rotor_inertia_kgm2 else " (0: not modelled)"}
 
 [flight_software]
@@ -245,6 +273,37 @@ accel_noise_mps2 = 0.05
 """
     parse_vehicle(tomllib.loads(text), src, PHYSICS_DT_S)  # the file loads, hovers at b_H and can climb
     return text
+
+
+def _thrust_stand(table: dict, radius_m: float):
+    """(C_T, C_Q, speed map, TOML lines, speed-map note) fitted to a thrust-stand sweep (rotorlab.ident.rotor)."""
+    src = table.get("source", "thrust stand")
+    try:
+        b, w, T = (np.asarray(table[k], dtype=float) for k in ("command", "speed_rad_s", "thrust_N"))
+    except KeyError as exc:
+        raise ConfigError("a thrust-stand table needs command, speed_rad_s and thrust_N columns", file=src,
+                          field=str(exc.args[0]), expected="a column of that name") from None
+    if np.any((b < 0) | (b > 1)):
+        raise ConfigError("the ESC command of a thrust-stand table is a fraction of full command", file=src,
+                          field="command", expected="values in [0, 1]", got=float(b[(b < 0) | (b > 1)][0]))
+    ok = b > 0  # the power law has no value at b = 0
+    thrust = fit_thrust_coefficient(w, T, RHO_AIR, radius_m)
+    speed = fit_speed_map(b[ok], w[ok], "power")
+    lines = [f"thrust_coefficient = {_fmt(thrust.coefficient)}  # {src}: T = K_T Omega^2, K_T = {thrust.K:.6g} "
+             f"N/(rad/s)^2 (R^2 {thrust.r2:.4f}), C_T = K_T / (rho pi R^4)"]
+    if "torque_Nm" in table:
+        torque = fit_torque_coefficient(w, np.asarray(table["torque_Nm"], dtype=float), rho=RHO_AIR,
+                                        radius_m=radius_m)
+        cq = torque.coefficient
+        lines.append(f"torque_coefficient = {_fmt(cq)}  # {src}: Q = K_Q Omega^2, K_Q = {torque.K:.6g} N m/(rad/s)^2, "
+                     "C_Q = K_Q / (rho pi R^5)")
+    else:
+        cq = 4.0 * STATIC_CP / math.pi**4
+        lines.append(f"torque_coefficient = {_fmt(cq)}  # 4 c_P / pi^4, UIUC static c_P = {STATIC_CP} (estimate; "
+                     f"{src} has no torque)")
+    c = speed.coeffs
+    note = f"{src}: power-law fit Omega(b) = a0 b^a1 + a2 rad/s, rmse {speed.rmse:.3g} rad/s"
+    return thrust.coefficient, cq, (c["a0"], c["a1"], c["a2"]), lines, note
 
 
 def write_new_vehicle(path, name: str, **numbers) -> VehicleSpec:

@@ -37,6 +37,9 @@ def add_parser(sub):
                    help="C_T of T = C_T rho pi R^4 Omega^2 (thrust stand)")
     n.add_argument("--torque-coefficient", type=float, default=None,
                    help="C_Q of Q = C_Q rho pi R^5 Omega^2 (thrust stand)")
+    n.add_argument("--thrust-stand", default=None, metavar="CSV",
+                   help="thrust-stand sweep, columns command (0-1), speed_rad_s, thrust_N[, torque_Nm]: C_T, C_Q and "
+                        "the speed map are fitted to it (instead of --kv/--cells/--max-speed-rad-s/coefficients)")
     n.add_argument("--motor-tau-s", type=float, default=None, help="motor time constant, s")
     n.add_argument("--delay-s", type=float, default=None, help="command-to-rotor transport delay, s")
     n.add_argument("--inertia", type=float, nargs=3, default=None, metavar=("IXX", "IYY", "IZZ"),
@@ -71,8 +74,10 @@ def _new(args) -> int:
     from rotorlab.gains import save_gains
     from rotorlab.vehicles.generic import baseline_gains, write_new_vehicle
 
+    stand = _read_thrust_stand(args.thrust_stand) if args.thrust_stand else None
     v = write_new_vehicle(
-        args.out, args.name, frame=args.frame, mass_kg=args.mass_kg, arm_m=args.arm_m, prop_in=args.prop_in,
+        args.out, args.name, thrust_stand=stand, frame=args.frame, mass_kg=args.mass_kg, arm_m=args.arm_m,
+        prop_in=args.prop_in,
         kv=args.kv, cells=args.cells, max_speed_rad_s=args.max_speed_rad_s,
         thrust_coefficient=args.thrust_coefficient, torque_coefficient=args.torque_coefficient,
         motor_tau_s=args.motor_tau_s, delay_s=args.delay_s, inertia_kgm2=args.inertia,
@@ -83,6 +88,29 @@ def _new(args) -> int:
         save_gains(baseline_gains(v, name=Path(args.gains_out).stem), args.gains_out)
         print(f"wrote {args.gains_out}: baseline cascade (a starting point for rotorlab tune)")
     return 0
+
+
+def _read_thrust_stand(path) -> dict:
+    """The columns of a thrust-stand CSV (pyarrow's reader), with the file name as the source."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    from rotorlab.errors import ConfigError
+
+    try:
+        table = pacsv.read_csv(path)
+    except FileNotFoundError:
+        raise ConfigError("thrust-stand file not found", file=path) from None
+    except pa.ArrowInvalid as exc:
+        raise ConfigError(f"not a CSV table: {exc}", file=path) from None
+    out = {"source": f"thrust stand {Path(path).name}"}
+    for name in table.column_names:
+        col = table[name]
+        if not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)) or col.null_count:
+            raise ConfigError("thrust-stand columns are numbers", file=path, field=name,
+                              expected="a complete numeric column", got=str(col.type))
+        out[name] = col.to_numpy()
+    return out
 
 
 def _calibrate(args) -> int:
