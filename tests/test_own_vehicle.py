@@ -108,11 +108,14 @@ def test_linearisation_has_the_hand_torque_gain(tmp_path, frame):
 
 
 def test_x500_holds_position_with_its_baseline_gains():
-    r = run_scenario("hover", "x500", seed=1, duration_s=4.0, options={"switch_s": None})
+    # "none" is how the CLI says no gain switch (a TOML option value cannot be None); the x500 has one gain set
+    r = run_scenario("hover", "x500", seed=1, duration_s=4.0, options={"switch_s": "none"})
     assert r.info.get("stopped") is None
     half = len(r.log["t"]) // 2
     assert np.max(np.abs(r.log["x"][half:])) < 0.3 and np.max(np.abs(r.log["y"][half:])) < 0.3
     assert np.max(np.abs(r.log["theta"][half:])) < 5.0 and abs(r.log["z"][-1] - r.log["z_ref"][-1]) < 0.1
+    with pytest.raises(ConfigError, match="options.switch_s"):
+        run_scenario("hover", "x500", duration_s=1.0, options={"switch_s": "never"})
 
 
 @pytest.mark.parametrize("options, field, rule", [
