@@ -21,7 +21,7 @@ from rotorlab.sim.linearize import linearize
 from rotorlab.sim.runner import run_scenario
 from rotorlab.sim.simulator import Simulator
 from rotorlab.vehicles import RHO_AIR, VEHICLES_DIR, load_vehicle, parse_vehicle
-from rotorlab.vehicles.fit_axes import calibrate_axes, write_calibrated
+from rotorlab.vehicles.fit_axes import calibrate_axes, twin_scene, write_calibrated
 from rotorlab.vehicles.spec import FRAMES
 
 # PX4's tables in FRD (x forward, y right) with CW/CCW: 4001_gz_x500 CA_ROTOR0..3 (PX, PY signs; KM > 0 = CCW) and
@@ -154,7 +154,7 @@ def test_calibration_recovers_tuhh_quad_from_30_percent_off(tmp_path):
     but inertia and motor pole 30 % off (and a wrong delay) is calibrated to the TUHH twin's true free-flight
     linearisations; its response must be within 1 dB and 5 deg over 1-30 rad/s."""
     truth = load_vehicle("tuhh-quad")
-    targets = {a: linearize("free-flight", truth, a, f"gyro_{a}") for a in ("roll", "pitch", "yaw")}
+    targets = _tuhh_targets(truth)
     r = truth.rotor
     J = truth.inertia_kgm2
     start = dataclasses.replace(
@@ -168,6 +168,8 @@ def test_calibration_recovers_tuhh_quad_from_30_percent_off(tmp_path):
     # the physical parameters come back, not just the response
     assert c.inertia_kgm2 == pytest.approx(J, rel=0.02)
     assert c.lag_s == pytest.approx(r.lag_s, rel=0.02) and c.delay_s == pytest.approx(r.delay_s, abs=1e-9)
+    assert c.rotor_inertia_kgm2 == pytest.approx(r.inertia_kgm2, rel=0.02)
+    assert c.hforce_N_per_mps == pytest.approx(r.hforce_N_per_mps, rel=0.02)
     out = write_calibrated(truth.path, c, tmp_path / "calibrated.toml")
     back = load_vehicle(out)
     assert back.inertia_kgm2 == c.inertia_kgm2 and back.rotor.lag_s == c.lag_s
@@ -183,7 +185,7 @@ def test_vehicle_calibrate_cli_fits_model_files(tmp_path, capsys):
     argv = ["vehicle", "calibrate"]
     for axis, delay_s in (("roll", 0.024), ("pitch", 0.028)):
         path = tmp_path / f"{axis}.json"
-        save_model(path, linearize("free-flight", truth, axis, f"gyro_{axis}", delay=False), delay_s=delay_s)
+        save_model(path, linearize(twin_scene(truth), truth, axis, f"gyro_{axis}", delay=False), delay_s=delay_s)
         argv += ["--model", f"{axis}={path}"]
     text = (VEHICLES_DIR / "tuhh-quad" / "vehicle.toml").read_text().split("[rig.pitch]")[0]
     start = tmp_path / "start.toml"
@@ -197,10 +199,13 @@ def test_vehicle_calibrate_cli_fits_model_files(tmp_path, capsys):
     assert main(["vehicle", "calibrate", str(start), "--model", "pitch", "--out", str(out)]) == 2
 
 
-def test_vehicle_new_fits_a_thrust_stand_table(tmp_path):
-    """A thrust-stand sweep generated from the TUHH rotor (ref. 002 eqs. 3-5) gives back its C_T, C_Q, speed map
-    and hover command, and the twin's pitch torque gain equals the TUHH twin's."""
-    tuhh = load_vehicle("tuhh-quad")
+def _tuhh_targets(truth):
+    """The TUHH twin's true rate responses per axis on the gimbal (rotation about the CG), delays included."""
+    return {a: linearize(twin_scene(truth), truth, a, f"gyro_{a}") for a in ("roll", "pitch", "yaw")}
+
+
+def _tuhh_thrust_stand(tmp_path, tuhh):
+    """A thrust-stand sweep CSV generated from the TUHH rotor (ref. 002 eqs. 3-5)."""
     r = tuhh.rotor
     b = np.linspace(0.1, 1.0, 19)
     w = r.speed(b)
@@ -210,16 +215,44 @@ def test_vehicle_new_fits_a_thrust_stand_table(tmp_path):
     csv.write_text("command,speed_rad_s,thrust_N,torque_Nm\n"
                    + "".join(f"{x!r},{y!r},{k_T * y * y!r},{k_Q * y * y!r}\n"
                              for x, y in zip(b.tolist(), w.tolist(), strict=True)))
+    return csv
+
+
+def _tuhh_from_stand(tmp_path, tuhh, *extra):
     out = tmp_path / "stand.toml"
     assert main(["vehicle", "new", "stand", "--frame", "quad-plus", "--mass-kg", str(tuhh.mass_kg), "--arm-m",
-                 str(tuhh.arm_m), "--prop-in", str(2 * r.radius_m / 0.0254), "--inertia", *map(str, tuhh.inertia_kgm2),
-                 "--thrust-stand", str(csv), "--out", str(out)]) == 0
-    v = load_vehicle(out)
+                 str(tuhh.arm_m), "--prop-in", str(2 * tuhh.rotor.radius_m / 0.0254), *extra,
+                 "--thrust-stand", str(_tuhh_thrust_stand(tmp_path, tuhh)), "--out", str(out)]) == 0
+    return load_vehicle(out)
+
+
+def test_vehicle_new_fits_a_thrust_stand_table(tmp_path):
+    """The TUHH rotor's thrust-stand sweep gives back its C_T, C_Q, speed map and hover command, and the twin's
+    pitch torque gain equals the TUHH twin's."""
+    tuhh = load_vehicle("tuhh-quad")
+    r = tuhh.rotor
+    v = _tuhh_from_stand(tmp_path, tuhh, "--inertia", *map(str, tuhh.inertia_kgm2))
     assert v.rotor.thrust_coefficient == pytest.approx(r.thrust_coefficient, rel=1e-9)
     assert v.rotor.torque_coefficient == pytest.approx(r.torque_coefficient, rel=1e-9)
     assert v.rotor.speed_map == pytest.approx(r.speed_map, rel=1e-5)
     assert v.rotor.hover_command == pytest.approx(r.hover_command, rel=1e-4)
     assert _hand_rate_gain(v, "pitch") == pytest.approx(_hand_rate_gain(tuhh, "pitch"), rel=1e-4)
+    # a table and kv/cells are two sources of the same numbers
     assert main(["vehicle", "new", "stand", "--frame", "quad-plus", "--mass-kg", "1", "--arm-m", "0.2",
-                 "--prop-in", "10", "--kv", "900", "--cells", "3", "--thrust-stand", str(csv),
-                 "--out", str(out)]) == 2
+                 "--prop-in", "10", "--kv", "900", "--cells", "3", "--thrust-stand", str(tmp_path / "stand.csv"),
+                 "--out", str(tmp_path / "both.toml")]) == 2
+
+
+def test_calibration_from_vehicle_new_and_a_thrust_stand(tmp_path):
+    """The whole own-vehicle path with LTI targets: vehicle new from the TUHH mass, arm, propeller and its
+    thrust-stand sweep, everything else estimated (geometric inertia 24-46 % low, motor 30 ms, delay 10 ms, no rotor
+    inertia or in-plane drag, another IMU mount), calibrated to the TUHH twin's per-axis responses: within 1 dB and
+    5 deg over 1-30 rad/s, and the physical parameters back."""
+    tuhh = load_vehicle("tuhh-quad")
+    start = _tuhh_from_stand(tmp_path, tuhh)
+    c = calibrate_axes(start, _tuhh_targets(tuhh))
+    assert min(s.max_deg for s in c.residual_start.values()) > 25.0
+    assert c.max_error_db < 1.0 and c.max_error_deg < 5.0
+    assert c.inertia_kgm2 == pytest.approx(tuhh.inertia_kgm2, rel=0.02)
+    assert c.delay_s == pytest.approx(tuhh.rotor.delay_s, abs=1e-9)
+    assert c.rotor_inertia_kgm2 == pytest.approx(tuhh.rotor.inertia_kgm2, rel=0.05)

@@ -2,12 +2,22 @@
 
 The target of each axis is a model from axis command (%, the flight software's units) to body rate (deg/s,
 aerospace signs), continuous or discrete, with an optional transport delay. The twin's model is its own true
-linearisation in free flight (``rotorlab.sim.linearize``), so everything the twin has (IMU mount, rotor drag,
-rotor-inertia yaw reaction) stays in; what is fitted are the physical parameters a rate response determines:
+linearisation (``rotorlab.sim.linearize``), so everything the twin has (IMU mount, rotor drag, rotor-inertia yaw
+reaction) stays in. Its scene is the ``gimbal`` by default: the hovering twin on a frictionless ball joint at its
+CG, free to rotate and held in place, which is what a per-axis rotational model (rigid body, motor, delay, as
+rotorlab ident's structures) describes; in ``free-flight`` the translation also feeds back (the rotors' in-plane
+drag above the CG: a pendulum-like mode that moves the TUHH twin's roll response by 10.5 dB and 83 deg at 1 rad/s
+against 0.5 deg and 0.01 dB on the gimbal), for targets that include it. What is fitted are the physical
+parameters a rate response determines:
 
 * the principal moments of inertia (one per fitted axis),
 * the motor time constant ``lag_s`` (one per rotor group, see below),
-* the transport delay ``delay_s`` (one per rotor group).
+* the transport delay ``delay_s`` (one per rotor group),
+* with a yaw target on a variable-RPM twin, the two rotor numbers yaw needs besides its inertia: the rotor inertia
+  ``J_R`` (the spin-up reaction ``J_R dOmega/dt``, a zero at ``q / J_R``) and the rotors' in-plane drag
+  ``hforce_N_per_mps`` (yaw damping ``n k_h arm^2``, a pole below the band whose phase reaches into it: 22 deg at
+  1 rad/s on the TUHH twin). ``vehicle new`` estimates neither, and a yaw response without them would drag the
+  motor poles the axes share to their bounds.
 
 Rotor groups: in the plus layout roll is driven by rotors 2/4 and pitch by rotors 1/3 only, so each pair gets
 its own motor pole and delay (ref. 002 identifies them per axis); in the X and hexa layouts every rotor drives both
@@ -40,12 +50,13 @@ import math
 import re
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import scipy.optimize as so
 
 from rotorlab import atomic, lti
 from rotorlab.errors import ConfigError
-from rotorlab.scenes import PHYSICS_DT_S
+from rotorlab.scenes import PHYSICS_DT_S, build_scene
 from rotorlab.sim.linearize import linearize
 
 from .spec import VehicleSpec, load_vehicle_file
@@ -56,6 +67,9 @@ W_FIT_RAD_S = np.logspace(0.0, math.log10(30.0), 25)
 INERTIA_FACTOR_RANGE = (1.0 / 3.0, 3.0)  # of the starting value: a geometry estimate is good to a factor of 3
 LAG_RANGE_S = (0.002, 0.2)  # motor time constants of flying multirotors
 DELAY_RANGE_S = (0.0, 0.1)  # flight-stack delays; more is no flyable aircraft
+ROTOR_INERTIA_RANGE_KGM2 = (1e-7, 1e-3)  # propeller + bell, 3-inch to 30-inch propellers
+HFORCE_RANGE_N_PER_MPS = (1e-4, 1.0)  # rotor in-plane drag per m/s
+ROTOR_START = {"inertia_kgm2": 1e-5, "hforce_N_per_mps": 0.01}  # where the fit starts when the file says 0
 
 
 def rotor_groups(v: VehicleSpec) -> dict:
@@ -97,6 +111,8 @@ class Calibration:
     inertia_kgm2: tuple
     lag_s: tuple  # per rotor
     delay_s: tuple  # per rotor, whole physics steps
+    rotor_inertia_kgm2: float | None  # fitted J_R (None: not fitted)
+    hforce_N_per_mps: float | None  # fitted rotor in-plane drag (None: not fitted)
     residual: dict  # axis -> AxisResidual of the calibrated twin
     residual_start: dict  # axis -> AxisResidual of the starting twin
     cost_evaluations: int
@@ -126,14 +142,32 @@ def _target_response(target, w) -> np.ndarray:
     return lti.freqresp(model, w)[:, 0, 0] * np.exp(-1j * w * float(delay_s))
 
 
-def _with(v: VehicleSpec, inertia, lag, delay) -> VehicleSpec:
-    rotor = dataclasses.replace(v.rotor, lag_s=tuple(float(x) for x in lag), delay_s=tuple(float(x) for x in delay))
+def _with(v: VehicleSpec, inertia, lag, delay, yaw_rotor=None) -> VehicleSpec:
+    extra = {} if yaw_rotor is None else dict(zip(ROTOR_START, map(float, yaw_rotor), strict=True))
+    rotor = dataclasses.replace(v.rotor, lag_s=tuple(float(x) for x in lag), delay_s=tuple(float(x) for x in delay),
+                                **extra)
     return dataclasses.replace(v, inertia_kgm2=tuple(float(x) for x in inertia), rotor=rotor)
 
 
-def twin_response(v: VehicleSpec, axes, w, delay: bool = True) -> dict:
-    """The twin's free-flight rate response per axis (axis command % -> gyro deg/s) at ``w`` rad/s."""
-    G = linearize("free-flight", v, list(axes), [f"gyro_{a}" for a in axes], delay=delay)
+SCENES = ("gimbal", "free-flight")
+
+
+def _gimbal(spec, scene: str, v) -> bool:
+    # the free-flight scene's free joint becomes a ball joint at the airframe origin, which is the CG
+    next(j for j in spec.joints if j.name == "free").type = mujoco.mjtJoint.mjJNT_BALL
+    return False  # no rope anchor
+
+
+def twin_scene(v: VehicleSpec, scene: str = "gimbal"):
+    """The twin in ``scene``: ``gimbal`` (rotation about the CG only) or ``free-flight``."""
+    if scene not in SCENES:
+        raise ConfigError("the calibration scene", field="scene", expected=f"one of {SCENES}", got=scene)
+    return build_scene("free-flight", v, edit=_gimbal if scene == "gimbal" else None)
+
+
+def twin_response(v: VehicleSpec, axes, w, delay: bool = True, scene: str = "gimbal") -> dict:
+    """The twin's rate response per axis (axis command % -> gyro deg/s) at ``w`` rad/s in ``scene``."""
+    G = linearize(twin_scene(v, scene), v, list(axes), [f"gyro_{a}" for a in axes], delay=delay)
     H = lti.freqresp(G, w)
     return {a: H[:, i, i] for i, a in enumerate(axes)}
 
@@ -143,7 +177,8 @@ def _residual(axis, w, twin, target) -> AxisResidual:
     return AxisResidual(axis, np.asarray(w), 20.0 / math.log(10.0) * r.real, np.degrees(r.imag))
 
 
-def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S) -> Calibration:
+def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, scene: str = "gimbal",
+                   yaw_rotor: bool | None = None) -> Calibration:
     """Fit the twin's inertia, motor poles and delays to per-axis rate models.
 
     Parameters
@@ -156,6 +191,10 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S) -> 
         keeps its inertia.
     w_rad_s : array
         Fit frequencies, rad/s (default 25 points log-spaced over 1-30).
+    scene : {'gimbal', 'free-flight'}
+        Where the twin is linearised (see the module docstring).
+    yaw_rotor : bool, optional
+        Fit the rotor inertia and in-plane drag too (default: when yaw is a target of a variable-RPM twin).
 
     Returns
     -------
@@ -174,54 +213,62 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S) -> 
     i0 = np.array([vehicle.inertia_kgm2[INERTIA_INDEX[a]] for a in axes])
     lag0 = np.array([np.mean([vehicle.rotor.lag_s[k] for k in groups[g]]) for g in names])
     del0 = np.array([np.mean([vehicle.rotor.delay_s[k] for k in groups[g]]) for g in names])
+    if yaw_rotor is None:
+        yaw_rotor = "yaw" in axes and vehicle.kind == "variable-rpm"
+    n_r = 2 if yaw_rotor else 0
+    r0 = np.array([getattr(vehicle.rotor, k) or ROTOR_START[k] for k in ROTOR_START][:n_r])
+    n_s = n_i + n_g + n_r  # the parameters the delay-free linearisation depends on
 
     def unpack(x):
         inertia = list(vehicle.inertia_kgm2)
         for a, val in zip(axes, np.exp(x[:n_i]), strict=True):
             inertia[INERTIA_INDEX[a]] = val
         lag, delay = list(vehicle.rotor.lag_s), list(vehicle.rotor.delay_s)
-        for g, lg, dg in zip(names, np.exp(x[n_i:n_i + n_g]), x[n_i + n_g:], strict=True):
+        for g, lg, dg in zip(names, np.exp(x[n_i:n_i + n_g]), x[n_s:], strict=True):
             for k in groups[g]:
                 lag[k], delay[k] = lg, dg
-        return inertia, lag, delay
+        return inertia, lag, delay, (np.exp(x[n_i + n_g:n_s]) if yaw_rotor else None)
 
     cache = {}
 
     def undelayed(key):
-        # the delay-free linearisation depends on inertia and lags only: the delay's finite differences reuse it
+        # the delay-free linearisation does not depend on the delays: their finite differences reuse it
         if key not in cache:
-            inertia, lag, delay = unpack(np.array(key + (0.0,) * n_g))
-            cache[key] = twin_response(_with(vehicle, inertia, lag, delay), axes, w, delay=False)
+            inertia, lag, delay, rot = unpack(np.array(key + (0.0,) * n_g))
+            cache[key] = twin_response(_with(vehicle, inertia, lag, delay, rot), axes, w, delay=False, scene=scene)
         return cache[key]
 
     def resid(x):
-        H = undelayed(tuple(float(v) for v in x[:n_i + n_g]))
+        H = undelayed(tuple(float(v) for v in x[:n_s]))
         out = []
         for a in axes:
-            td = np.mean([x[n_i + n_g + names.index(g)] for g in _axis_groups(groups, a)])
+            td = np.mean([x[n_s + names.index(g)] for g in _axis_groups(groups, a)])
             r = np.log(H[a] * np.exp(-1j * w * td) / goal[a])
             out += [r.real, r.imag]
         return np.concatenate(out)
 
-    x0 = np.concatenate([np.log(i0), np.log(lag0), del0])
-    lo = np.concatenate([np.log(i0 * INERTIA_FACTOR_RANGE[0]), np.full(n_g, math.log(LAG_RANGE_S[0])),
+    rot_lo = np.log([ROTOR_INERTIA_RANGE_KGM2[0], HFORCE_RANGE_N_PER_MPS[0]][:n_r])
+    rot_hi = np.log([ROTOR_INERTIA_RANGE_KGM2[1], HFORCE_RANGE_N_PER_MPS[1]][:n_r])
+    x0 = np.concatenate([np.log(i0), np.log(lag0), np.log(r0), del0])
+    lo = np.concatenate([np.log(i0 * INERTIA_FACTOR_RANGE[0]), np.full(n_g, math.log(LAG_RANGE_S[0])), rot_lo,
                          np.full(n_g, DELAY_RANGE_S[0])])
-    hi = np.concatenate([np.log(i0 * INERTIA_FACTOR_RANGE[1]), np.full(n_g, math.log(LAG_RANGE_S[1])),
+    hi = np.concatenate([np.log(i0 * INERTIA_FACTOR_RANGE[1]), np.full(n_g, math.log(LAG_RANGE_S[1])), rot_hi,
                          np.full(n_g, DELAY_RANGE_S[1])])
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
-    # x_scale: a unit step is a factor e in inertia and lag and 10 ms of delay, so the trust region moves all
-    # three alike; the tolerances let it walk the lag-delay valley to its end (xtol stops it early otherwise)
-    sol = so.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.concatenate([np.ones(n_i + n_g),
-                                                                              np.full(n_g, 0.01)]),
+    # x_scale: a unit step is a factor e in every other parameter and 10 ms of delay, so the trust region moves
+    # them alike; the tolerances let it walk the lag-delay valley to its end (xtol stops it early otherwise)
+    sol = so.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.concatenate([np.ones(n_s), np.full(n_g, 0.01)]),
                            diff_step=1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12)
-    inertia, lag, delay = unpack(sol.x)
+    inertia, lag, delay, rot = unpack(sol.x)
     delay = [round(d / PHYSICS_DT_S) * PHYSICS_DT_S for d in delay]
-    fitted = _with(vehicle, inertia, lag, delay)
-    after = twin_response(fitted, axes, w)
-    before = twin_response(vehicle, axes, w)
+    fitted = _with(vehicle, inertia, lag, delay, rot)
+    after = twin_response(fitted, axes, w, scene=scene)
+    before = twin_response(vehicle, axes, w, scene=scene)
     return Calibration(
         vehicle=fitted, inertia_kgm2=tuple(fitted.inertia_kgm2), lag_s=tuple(fitted.rotor.lag_s),
         delay_s=tuple(fitted.rotor.delay_s),
+        rotor_inertia_kgm2=fitted.rotor.inertia_kgm2 if yaw_rotor else None,
+        hforce_N_per_mps=fitted.rotor.hforce_N_per_mps if yaw_rotor else None,
         residual={a: _residual(a, w, after[a], goal[a]) for a in axes},
         residual_start={a: _residual(a, w, before[a], goal[a]) for a in axes},
         cost_evaluations=int(sol.nfev))
@@ -257,6 +304,9 @@ def write_calibrated(source, result: Calibration, out, note: str = "calibrated (
     _set_key(lines, "airframe", "inertia_kgm2", vec(result.inertia_kgm2), note)
     _set_key(lines, "rotor", "lag_s", vec(result.lag_s), note)
     _set_key(lines, "rotor", "delay_s", vec(result.delay_s), note)
+    if result.rotor_inertia_kgm2 is not None:
+        _set_key(lines, "rotor", "inertia_kgm2", repr(result.rotor_inertia_kgm2), note)
+        _set_key(lines, "rotor", "hforce_N_per_mps", repr(result.hforce_N_per_mps), note)
     atomic.write_text(out, "\n".join(lines) + "\n")
     load_vehicle_file(out, PHYSICS_DT_S)
     return out

@@ -58,7 +58,10 @@ def add_parser(sub):
     c.add_argument("--model", action="append", default=[], metavar="AXIS=FILE",
                    help="model JSON of an axis (roll, pitch, yaw), axis command % -> rate deg/s; repeatable")
     c.add_argument("--to-twin", default=None, metavar="VEHICLE",
-                   help="calibrate to another twin's true free-flight linearisation (all three axes)")
+                   help="calibrate to another twin's true linearisation in the same scene (all three axes)")
+    c.add_argument("--scene", choices=("gimbal", "free-flight"), default="gimbal",
+                   help="where the twin is linearised: gimbal (rotation about the CG, as per-axis rotational "
+                        "models) or free-flight (translation feeding back too)")
     c.add_argument("--out", required=True, help="calibrated vehicle TOML to write (comments kept)")
     return p
 
@@ -117,13 +120,13 @@ def _calibrate(args) -> int:
     from rotorlab.ident.modelio import load_model
     from rotorlab.sim.linearize import linearize
     from rotorlab.vehicles import load_vehicle, vehicle_path
-    from rotorlab.vehicles.fit_axes import AXES, calibrate_axes, write_calibrated
+    from rotorlab.vehicles.fit_axes import AXES, calibrate_axes, twin_scene, write_calibrated
 
     v = load_vehicle(args.vehicle)
     targets = {}
     if args.to_twin:
         truth = load_vehicle(args.to_twin)
-        targets = {a: linearize("free-flight", truth, a, f"gyro_{a}") for a in AXES}
+        targets = {a: linearize(twin_scene(truth, args.scene), truth, a, f"gyro_{a}") for a in AXES}
     for item in args.model:
         axis, sep, path = item.partition("=")
         if not sep or axis not in AXES:
@@ -132,12 +135,15 @@ def _calibrate(args) -> int:
         targets[axis] = (sys, delay_s)
     if not targets:
         raise CLIError("nothing to calibrate to: give --model AXIS=FILE (repeatable) or --to-twin VEHICLE")
-    result = calibrate_axes(v, targets)
+    result = calibrate_axes(v, targets, scene=args.scene)
     out = write_calibrated(vehicle_path(args.vehicle), result, args.out)
     print(f"wrote {out}")
     print(f"inertia {', '.join(f'{x:.5g}' for x in result.inertia_kgm2)} kg m^2; "
           f"motor lag {', '.join(f'{x * 1e3:.2f}' for x in result.lag_s)} ms; "
           f"delay {', '.join(f'{x * 1e3:.0f}' for x in result.delay_s)} ms")
+    if result.rotor_inertia_kgm2 is not None:
+        print(f"rotor inertia {result.rotor_inertia_kgm2:.4g} kg m^2; rotor in-plane drag "
+              f"{result.hforce_N_per_mps:.4g} N/(m/s)")
     print("residual twin / model (dB, deg):")
     print(result.table())
     for a, r in result.residual.items():
