@@ -256,3 +256,20 @@ def test_calibration_from_vehicle_new_and_a_thrust_stand(tmp_path):
     assert c.inertia_kgm2 == pytest.approx(tuhh.inertia_kgm2, rel=0.02)
     assert c.delay_s == pytest.approx(tuhh.rotor.delay_s, abs=1e-9)
     assert c.rotor_inertia_kgm2 == pytest.approx(tuhh.rotor.inertia_kgm2, rel=0.05)
+
+
+def test_calibration_of_a_quad_x_shares_one_motor_pole_and_delay():
+    """quad-x: every rotor drives roll and pitch, so one motor pole and one delay are fitted (to the x500's own
+    responses, from inertia and pole 30 % off and 15 ms of delay against its 0); a non-physical start is refused."""
+    x500 = load_vehicle("x500")
+    r = x500.rotor
+    targets = {a: linearize(twin_scene(x500), x500, a, f"gyro_{a}") for a in ("roll", "pitch", "yaw")}
+    start = dataclasses.replace(x500, inertia_kgm2=tuple(1.3 * j for j in x500.inertia_kgm2),
+                                rotor=dataclasses.replace(r, lag_s=(r.lag_s[0] / 0.7,) * 4, delay_s=(0.015,) * 4))
+    c = calibrate_axes(start, targets)
+    assert len(set(c.lag_s)) == 1 and len(set(c.delay_s)) == 1
+    assert c.max_error_db < 1.0 and c.max_error_deg < 5.0
+    assert c.inertia_kgm2 == pytest.approx(x500.inertia_kgm2, rel=0.02)
+    flat = dataclasses.replace(start, inertia_kgm2=(0.01, 0.01, 0.03))
+    with pytest.raises(ConfigError, match="I_a \\+ I_b >= I_c"):
+        calibrate_axes(flat, targets)

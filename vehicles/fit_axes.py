@@ -70,6 +70,7 @@ DELAY_RANGE_S = (0.0, 0.1)  # flight-stack delays; more is no flyable aircraft
 ROTOR_INERTIA_RANGE_KGM2 = (1e-7, 1e-3)  # propeller + bell, 3-inch to 30-inch propellers
 HFORCE_RANGE_N_PER_MPS = (1e-4, 1.0)  # rotor in-plane drag per m/s
 ROTOR_START = {"inertia_kgm2": 1e-5, "hforce_N_per_mps": 0.01}  # where the fit starts when the file says 0
+TRIANGLE_PENALTY = 100.0  # residual per relative excess over the triangle inequality (a 1 % excess: 1 neper)
 
 
 def rotor_groups(v: VehicleSpec) -> dict:
@@ -142,6 +143,19 @@ def _target_response(target, w) -> np.ndarray:
     return lti.freqresp(model, w)[:, 0, 0] * np.exp(-1j * w * float(delay_s))
 
 
+def _triangle(inertia) -> tuple[tuple, float]:
+    """``inertia`` with each moment capped at the sum of the other two (any rigid body's principal moments obey
+    it, and MuJoCo refuses a body that does not), and the relative excess that was cut off."""
+    i = [float(x) for x in inertia]
+    excess = 0.0
+    for c in range(3):
+        s = sum(i) - i[c]
+        if i[c] > s:
+            excess += i[c] / s - 1.0
+            i[c] = s * (1.0 - 1e-9)
+    return tuple(i), excess
+
+
 def _with(v: VehicleSpec, inertia, lag, delay, yaw_rotor=None) -> VehicleSpec:
     extra = {} if yaw_rotor is None else dict(zip(ROTOR_START, map(float, yaw_rotor), strict=True))
     rotor = dataclasses.replace(v.rotor, lag_s=tuple(float(x) for x in lag), delay_s=tuple(float(x) for x in delay),
@@ -205,6 +219,10 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
     if not axes or set(targets) - set(AXES):
         raise ConfigError("calibration targets", field="targets", expected=f"models for some of {AXES}",
                           got=sorted(targets))
+    if _triangle(vehicle.inertia_kgm2)[1] > 0:
+        raise ConfigError("principal moments of a rigid body obey I_a + I_b >= I_c", file=vehicle.path,
+                          field="airframe.inertia_kgm2", expected="a physical starting inertia",
+                          got=list(vehicle.inertia_kgm2))
     w = np.asarray(w_rad_s, dtype=float)
     goal = {a: _target_response(targets[a], w) for a in axes}
     groups = rotor_groups(vehicle)
@@ -235,12 +253,16 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
         # the delay-free linearisation does not depend on the delays: their finite differences reuse it
         if key not in cache:
             inertia, lag, delay, rot = unpack(np.array(key + (0.0,) * n_g))
-            cache[key] = twin_response(_with(vehicle, inertia, lag, delay, rot), axes, w, delay=False, scene=scene)
+            # a trial point outside the triangle inequality is evaluated at its projection and pays the excess,
+            # so the residual stays continuous and the fit walks back to physical inertias
+            inertia, excess = _triangle(inertia)
+            H = twin_response(_with(vehicle, inertia, lag, delay, rot), axes, w, delay=False, scene=scene)
+            cache[key] = H, excess
         return cache[key]
 
     def resid(x):
-        H = undelayed(tuple(float(v) for v in x[:n_s]))
-        out = []
+        H, excess = undelayed(tuple(float(v) for v in x[:n_s]))
+        out = [np.array([TRIANGLE_PENALTY * excess])]
         for a in axes:
             td = np.mean([x[n_s + names.index(g)] for g in _axis_groups(groups, a)])
             r = np.log(H[a] * np.exp(-1j * w * td) / goal[a])
@@ -260,6 +282,7 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
     sol = so.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.concatenate([np.ones(n_s), np.full(n_g, 0.01)]),
                            diff_step=1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12)
     inertia, lag, delay, rot = unpack(sol.x)
+    inertia = _triangle(inertia)[0]
     delay = [round(d / PHYSICS_DT_S) * PHYSICS_DT_S for d in delay]
     fitted = _with(vehicle, inertia, lag, delay, rot)
     after = twin_response(fitted, axes, w, scene=scene)
