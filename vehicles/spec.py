@@ -448,9 +448,10 @@ def _check_rpm_thrust(v: VehicleSpec, r: Table) -> None:
                       expected=f"thrust at full command > weight {weight_N:.4g} N", got=f"{full_N:.4g} N")
     hover_N = v.n_rotors * rot.k_thrust * float(rot.speed(rot.hover_command)) ** 2
     if abs(hover_N / weight_N - 1.0) > HOVER_THRUST_TOLERANCE:
-        b = float(((np.sqrt(weight_N / (v.n_rotors * rot.k_thrust)) - rot.speed_map[2]) / a0) ** (1.0 / a1))
+        x = (math.sqrt(weight_N / (v.n_rotors * rot.k_thrust)) - rot.speed_map[2]) / a0
         raise r.error("hover_command", "the hover command must hold the weight: n k_T Omega(b_H)^2 = m g",
-                      expected=f"b_H = {b:.4f} (thrust {weight_N:.4g} N)",
+                      expected=f"b_H = {x ** (1.0 / a1):.4f} (thrust {weight_N:.4g} N)" if x > 0 else
+                      f"thrust {weight_N:.4g} N (no command gives it: the idle speed a2 is above hover)",
                       got=f"{rot.hover_command} (thrust {hover_N:.4g} N)")
 
 
