@@ -168,7 +168,7 @@ def test_calibration_recovers_tuhh_quad_from_30_percent_off(tmp_path):
     # the physical parameters come back, not just the response
     assert c.inertia_kgm2 == pytest.approx(J, rel=0.02)
     assert c.lag_s == pytest.approx(r.lag_s, rel=0.02) and c.delay_s == pytest.approx(r.delay_s, abs=1e-9)
-    assert c.rotor_inertia_kgm2 == pytest.approx(r.inertia_kgm2, rel=0.02)
+    assert c.rotor_inertia_kgm2 == pytest.approx(r.inertia_kgm2, rel=0.02) and c.at_bounds == ()
     assert c.hforce_N_per_mps == pytest.approx(r.hforce_N_per_mps, rel=0.02)
     out = write_calibrated(truth.path, c, tmp_path / "calibrated.toml")
     back = load_vehicle(out)
@@ -268,6 +268,7 @@ def test_calibration_of_a_quad_x_shares_one_motor_pole_and_delay():
                                 rotor=dataclasses.replace(r, lag_s=(r.lag_s[0] / 0.7,) * 4, delay_s=(0.015,) * 4))
     c = calibrate_axes(start, targets)
     assert len(set(c.lag_s)) == 1 and len(set(c.delay_s)) == 1
+    assert c.at_bounds == ("delay all rotors at its lower bound",)  # the x500 model has no delay
     assert c.max_error_db < 1.0 and c.max_error_deg < 5.0
     assert c.inertia_kgm2 == pytest.approx(x500.inertia_kgm2, rel=0.02)
     flat = dataclasses.replace(start, inertia_kgm2=(0.01, 0.01, 0.03))

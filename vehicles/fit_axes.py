@@ -117,6 +117,9 @@ class Calibration:
     residual: dict  # axis -> AxisResidual of the calibrated twin
     residual_start: dict  # axis -> AxisResidual of the starting twin
     cost_evaluations: int
+    #: parameters that ended on a bound of their physical range: the model asks for more than the range allows
+    #: there (or, for a delay at 0, the target has none)
+    at_bounds: tuple = ()
 
     @property
     def max_error_db(self) -> float:
@@ -281,6 +284,12 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
     # them alike; the tolerances let it walk the lag-delay valley to its end (xtol stops it early otherwise)
     sol = so.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.concatenate([np.ones(n_s), np.full(n_g, 0.01)]),
                            diff_step=1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    labels = ([f"inertia {a}" for a in axes] + [f"motor lag {g or 'all rotors'}" for g in names]
+              + ["rotor inertia", "rotor in-plane drag"][:n_r] + [f"delay {g or 'all rotors'}" for g in names])
+    # within 0.1 % of a bound (log parameters) or half a physics step (delays, which are rounded to steps)
+    tol = np.concatenate([np.full(n_s, 1e-3), np.full(n_g, 0.5 * PHYSICS_DT_S)])
+    at_bounds = tuple(f"{name} at its {'lower' if x - a < b - x else 'upper'} bound"
+                      for name, x, a, b, t in zip(labels, sol.x, lo, hi, tol, strict=True) if min(x - a, b - x) < t)
     inertia, lag, delay, rot = unpack(sol.x)
     inertia = _triangle(inertia)[0]
     delay = [round(d / PHYSICS_DT_S) * PHYSICS_DT_S for d in delay]
@@ -294,7 +303,7 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
         hforce_N_per_mps=fitted.rotor.hforce_N_per_mps if yaw_rotor else None,
         residual={a: _residual(a, w, after[a], goal[a]) for a in axes},
         residual_start={a: _residual(a, w, before[a], goal[a]) for a in axes},
-        cost_evaluations=int(sol.nfev))
+        cost_evaluations=int(sol.nfev), at_bounds=at_bounds)
 
 
 def _set_key(lines: list, section: str, key: str, value: str, note: str) -> None:

@@ -144,6 +144,8 @@ def _calibrate(args) -> int:
     if result.rotor_inertia_kgm2 is not None:
         print(f"rotor inertia {result.rotor_inertia_kgm2:.4g} kg m^2; rotor in-plane drag "
               f"{result.hforce_N_per_mps:.4g} N/(m/s)")
+    for note in result.at_bounds:
+        print(f"note: {note} (the model asks for more than the physical range there)")
     print("residual twin / model (dB, deg):")
     print(result.table())
     for a, r in result.residual.items():
