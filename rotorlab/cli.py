@@ -28,6 +28,7 @@ COMMANDS = {
     "plot": "plot",
     "bode": "bode",
     "compare": "compare",
+    "vehicle": "vehicle",
 }
 
 

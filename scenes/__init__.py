@@ -168,16 +168,20 @@ def build_scene(scene: str, vehicle, physics_dt_s: float = PHYSICS_DT_S, edit=No
         model = s.compile()
     except ValueError as exc:
         raise ConfigError(f"MuJoCo could not compile the {scene} scene for {v.name}: {exc}", file=v.path) from None
-    thrust = np.array([model.actuator(f"{PREFIX}thrust{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}thrust{i}")])
-    aero = {k: np.array([model.actuator(f"{PREFIX}{k}{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}{k}{i}")])
-            for k in ("inflow", "hx", "hy")}
+    def ids(kind: str) -> np.ndarray:
+        # the vehicle's rotors 1..n that have actuator ``kind`` (a thrust stand has rotor 1 only)
+        return np.array([model.actuator(f"{PREFIX}{kind}{i}").id for i in range(1, v.n_rotors + 1)
+                         if _has(model, f"{PREFIX}{kind}{i}")], dtype=int)
+
+    thrust = ids("thrust")
+    aero = {k: ids(k) for k in ("inflow", "hx", "hy")}
     # the hingeless hubs' disc-tilt dampers (vehicles.build); a rigid-propeller vehicle has none (no key)
     for ax in "xy":
-        tilt = [model.actuator(f"{PREFIX}tilt{i}_{ax}").id for i in range(1, 5) if _has(model, f"{PREFIX}tilt{i}_{ax}")]
+        tilt = [model.actuator(f"{PREFIX}tilt{i}_{ax}").id for i in range(1, v.n_rotors + 1)
+                if _has(model, f"{PREFIX}tilt{i}_{ax}")]
         if tilt:
             aero[f"tilt_{ax}"] = np.array(tilt, dtype=int)
-    spinup = np.array([model.actuator(f"{PREFIX}spinup{i}").id for i in range(1, 5) if _has(model, f"{PREFIX}spinup{i}")],
-                      dtype=int)
+    spinup = ids("spinup")
     return Scene(scene, v, model, s, rig_axis, stop, thrust, aero, has_anchor, spinup)
 
 

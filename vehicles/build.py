@@ -102,7 +102,8 @@ def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
         # landing feet below each arm tip, the only airframe collision geoms besides the fuselage
         frame.add_geom(name=f"foot{i}", default=collision, type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.02, 0, 0],
                        pos=[0.6 * p[0], 0.6 * p[1], -bz - 0.15])
-    frame.add_site(name="arm_front_tip", pos=[pos[0, 0] + R * 0.2, 0, pos[0, 2]], size=[0.01, 0, 0])
+    front = pos[int(np.argmax(pos[:, 0]))]  # the foremost rotor: rotor 1 of the plus layout
+    frame.add_site(name="arm_front_tip", pos=[front[0] + R * 0.2, 0, front[2]], size=[0.01, 0, 0])
     frame.add_site(name="cg", pos=[0, 0, 0], size=[0.005, 0, 0])
 
     imu = v.imu

@@ -23,6 +23,22 @@ from rotorlab.errors import ConfigError
 RHO_AIR = 1.225  # kg/m^3, ISA sea level
 G0 = 9.81  # m/s^2
 
+_S45, _C30 = math.sqrt(0.5), math.sqrt(3.0) / 2.0
+#: ``[airframe] frame`` -> (hub directions, unit vectors in the body x-y plane FLU: x forward, y left; spins, +1
+#: clockwise seen from above), in rotor order 1..n. ``quad-plus`` is rotorlab's own numbering (1 front, 2 right,
+#: 3 rear, 4 left; front/rear clockwise by default). ``quad-x`` and ``hexa-x`` follow PX4's numbering and turning
+#: directions: quad-x 1 front-right CCW, 2 rear-left CCW, 3 front-left CW, 4 rear-right CW (PX4-Autopilot
+#: ROMFS/px4fmu_common/init.d-posix/airframes/4001_gz_x500, CA_ROTOR0..3, and PX4-gazebo-models
+#: models/x500/model.sdf rotor_0..3); hexa-x 1 mid-right CW, 2 mid-left CCW, 3 front-left CW, 4 rear-right CCW,
+#: 5 front-right CCW, 6 rear-left CW (PX4-Autopilot src/lib/mixer/MultirotorMixer/geometries/hex_x.toml).
+FRAMES = {
+    "quad-plus": (((1.0, 0.0), (0.0, -1.0), (-1.0, 0.0), (0.0, 1.0)), (1.0, -1.0, 1.0, -1.0)),
+    "quad-x": (((_S45, -_S45), (-_S45, _S45), (_S45, _S45), (-_S45, -_S45)), (-1.0, -1.0, 1.0, 1.0)),
+    "hexa-x": (((0.0, -1.0), (0.0, 1.0), (_C30, 0.5), (-_C30, -0.5), (_C30, -0.5), (-_C30, 0.5)),
+               (1.0, -1.0, 1.0, -1.0, -1.0, 1.0)),
+}
+DEFAULT_FRAME = "quad-plus"
+
 
 @dataclasses.dataclass(frozen=True)
 class RotorSpec:
@@ -160,6 +176,7 @@ class VehicleSpec:
     #: vehicle has no open-loop PRBS campaign band of its own (rotorlab.excitation.ANTEOS_CAMPAIGN's is used)
     campaign_band_rad_s: tuple | None = None
     control_rate_hz: float = 50.0  # flight-software tick rate ([flight_software] rate_hz)
+    frame: str = DEFAULT_FRAME  # rotor layout, a key of FRAMES ([airframe] frame)
 
     @property
     def control_dt_s(self) -> float:
@@ -176,9 +193,29 @@ class VehicleSpec:
         return len(self.rotor.spin)
 
     def rotor_positions(self) -> np.ndarray:
-        """Rotor hub positions (n, 3) in the body frame (FLU), plus layout: 1 front, 2 right, 3 rear, 4 left."""
+        """Rotor hub positions (n, 3) in the body frame (FLU): ``arm_m`` along each of the frame's hub directions,
+        ``rotor_height_m`` above the CG, in rotor order (:data:`FRAMES`)."""
         l, h = self.arm_m, self.rotor_height_m
-        return np.array([[l, 0, h], [0, -l, h], [-l, 0, h], [0, l, h]], dtype=float)
+        return np.array([[l * x, l * y, h] for x, y in FRAMES[self.frame][0]], dtype=float)
+
+    def axis_lever_m(self, axis: str) -> float:
+        """Moment arm of one % of ``axis`` command (``roll`` or ``pitch``) per unit of rotor thrust change, m.
+
+        The flight software's mixer gives rotor i the share ``0.5 |d_i| / max|d|`` of an axis command, d_i its
+        hub's distance from the axis (``rotorlab.sim.control.mixer``), so the moment per unit thrust change is
+        ``sum_i |d_i| 0.5 |d_i| / max|d|``: ``arm_m`` for the plus layout (the opposite pair, half each),
+        ``sqrt(2) arm_m`` for quad-x (four rotors at ``arm/sqrt(2)``), ``1.5 arm_m`` (roll) and
+        ``sqrt(3) arm_m`` (pitch) for hexa-x.
+
+        Examples
+        --------
+        >>> from rotorlab.vehicles import load_vehicle
+        >>> v = load_vehicle("tuhh-quad")
+        >>> v.axis_lever_m("pitch") == v.arm_m
+        True
+        """
+        d = np.abs(self.rotor_positions()[:, {"roll": 1, "pitch": 0}[axis]])
+        return float(sum(di * (0.5 * di / d.max()) for di in d))
 
     @property
     def hover_thrust_N(self) -> float:
@@ -249,11 +286,11 @@ INERTIA_MIN_KGM2 = 1e-9
 MAX_LAG_DELAY_S = 1.0
 
 
-def _per_rotor(r: Table, key: str, lo_open: bool, hi: float | None = None) -> tuple:
-    """A number shared by the four rotors, or a list of four (rotor 1 front, 2 right, 3 rear, 4 left)."""
+def _per_rotor(r: Table, key: str, n: int, lo_open: bool, hi: float | None = None) -> tuple:
+    """A number shared by the frame's ``n`` rotors, or a list of ``n`` in rotor order (:data:`FRAMES`)."""
     if isinstance(r.data.get(key), list):
-        return r.vec(key, 4, lo=0.0, lo_open=lo_open, hi=hi)
-    return (r.num(key, lo=0.0, lo_open=lo_open, hi=hi),) * 4
+        return r.vec(key, n, lo=0.0, lo_open=lo_open, hi=hi)
+    return (r.num(key, lo=0.0, lo_open=lo_open, hi=hi),) * n
 
 
 def _published(rd: Table | None) -> dict:
@@ -296,10 +333,12 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
     v = rd.table("vehicle")
     kind = v.str("kind", choices=("variable-pitch", "variable-rpm"))
     a = rd.table("airframe")
+    frame = a.str("frame", DEFAULT_FRAME, choices=tuple(FRAMES))
+    n = len(FRAMES[frame][1])
     r = rd.table("rotor")
-    spin = r.vec("spin", 4)
+    spin = r.vec("spin", n) if "spin" in r else FRAMES[frame][1]
     if any(s not in (-1.0, 1.0) for s in spin):
-        raise r.error("spin", expected="four values, each +1 or -1", got=list(spin))
+        raise r.error("spin", expected=f"{n} values, each +1 or -1", got=list(spin))
     common = dict(
         radius_m=r.num("radius_m", lo=0.0, lo_open=True),
         spin=spin,
@@ -307,8 +346,8 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         axial_damping_N_per_mps=r.num("axial_damping_N_per_mps", lo=0.0),
         hforce_N_per_mps=r.num("hforce_N_per_mps", lo=0.0),
         flap_arm_m=r.num("flap_arm_m", lo=0.0),
-        lag_s=_per_rotor(r, "lag_s", lo_open=True, hi=MAX_LAG_DELAY_S),
-        delay_s=_per_rotor(r, "delay_s", lo_open=False, hi=MAX_LAG_DELAY_S),
+        lag_s=_per_rotor(r, "lag_s", n, lo_open=True, hi=MAX_LAG_DELAY_S),
+        delay_s=_per_rotor(r, "delay_s", n, lo_open=False, hi=MAX_LAG_DELAY_S),
         blades=r.num("blades", 2, lo=2),
         solidity=r.num("solidity", 0.0, lo=0.0, hi=1.0),
         lift_slope_per_rad=r.num("lift_slope_per_rad", 0.0, lo=0.0),
@@ -380,12 +419,40 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
         commands=_commands(rd.table("commands")),
         published=_published(rd.table("published", required=False)),
         sources=dict(srcs.data) if srcs is not None else {}, control_rate_hz=rate_hz,
-        campaign_band_rad_s=_campaign_band(rd.table("campaign", required=False)),
+        campaign_band_rad_s=_campaign_band(rd.table("campaign", required=False)), frame=frame,
     )
     rd.check_unknown()
+    if kind == "variable-rpm":
+        _check_rpm_thrust(spec, r)
     if physics_dt_s:
         check_delay_steps(spec, physics_dt_s)
     return spec
+
+
+#: a variable-RPM twin's hover command must give its weight: MuJoCo would otherwise start it climbing or sinking
+HOVER_THRUST_TOLERANCE = 0.01
+
+
+def _check_rpm_thrust(v: VehicleSpec, r: Table) -> None:
+    """A variable-RPM vehicle must be able to fly: its speed map must rise, full command must lift more than the
+    weight, and the hover command must hold it (within :data:`HOVER_THRUST_TOLERANCE`)."""
+    rot = v.rotor
+    weight_N = v.mass_kg * G0
+    a0, a1, _ = rot.speed_map
+    if not (a0 > 0 and a1 > 0 and float(rot.speed(rot.hover_command)) > 0):
+        raise r.error("speed_map", "the rotor speed Omega(b) = a0 b^a1 + a2 must rise with b and be positive at hover",
+                      expected="a0 > 0, a1 > 0, Omega(b_H) > 0", got=list(rot.speed_map))
+    full_N = v.n_rotors * rot.k_thrust * float(rot.speed(1.0)) ** 2
+    if full_N <= weight_N:
+        raise r.error("speed_map", "the rotors cannot lift the vehicle: n k_T Omega(1)^2 must exceed m g",
+                      expected=f"thrust at full command > weight {weight_N:.4g} N", got=f"{full_N:.4g} N")
+    hover_N = v.n_rotors * rot.k_thrust * float(rot.speed(rot.hover_command)) ** 2
+    if abs(hover_N / weight_N - 1.0) > HOVER_THRUST_TOLERANCE:
+        x = (math.sqrt(weight_N / (v.n_rotors * rot.k_thrust)) - rot.speed_map[2]) / a0
+        raise r.error("hover_command", "the hover command must hold the weight: n k_T Omega(b_H)^2 = m g",
+                      expected=f"b_H = {x ** (1.0 / a1):.4f} (thrust {weight_N:.4g} N)" if x > 0 else
+                      f"thrust {weight_N:.4g} N (no command gives it: the idle speed a2 is above hover)",
+                      got=f"{rot.hover_command} (thrust {hover_N:.4g} N)")
 
 
 def _campaign_band(c: Table | None) -> tuple | None:

@@ -20,9 +20,10 @@ from rotorlab.scenes import RIG_AXES
 from rotorlab.sim.disturbances.base import Disturbance
 
 
-def axis_torque_per_pct(vehicle) -> float:
-    """Roll/pitch moment per % of axis command at hover, N m (each rotor of the opposite pair gets half)."""
-    return vehicle.arm_m * vehicle.thrust_gain() * vehicle.dctrl_dcommand()
+def axis_torque_per_pct(vehicle, axis: str = "pitch") -> float:
+    """Roll/pitch moment per % of axis command at hover, N m (plus layout: each rotor of the opposite pair gets
+    half; any frame: :meth:`~rotorlab.vehicles.spec.VehicleSpec.axis_lever_m`)."""
+    return vehicle.axis_lever_m(axis) * vehicle.thrust_gain() * vehicle.dctrl_dcommand()
 
 
 class InputDisturbanceStep(Disturbance):
@@ -57,8 +58,9 @@ class InputDisturbanceStep(Disturbance):
 
     def reset(self, sim, rng) -> None:
         # [collective, roll, pitch, yaw] slot of the rig's axis
-        self._slot = ("roll", "pitch").index(RIG_AXES[sim.scene.name][0]) + 1
-        self._moment_per_pct = axis_torque_per_pct(sim.vehicle)
+        axis = RIG_AXES[sim.scene.name][0]
+        self._slot = ("roll", "pitch").index(axis) + 1
+        self._moment_per_pct = axis_torque_per_pct(sim.vehicle, axis)
 
     def input_pct(self, t: float) -> float:
         # half a tick of tolerance: the tick times are sums of float periods

@@ -7,7 +7,7 @@ Options
 ``wind_mps`` : float        mean wind (default 2.5)
 ``from_deg`` : float        where it comes from (default 0: headwind, the pitch axis holds the position)
 ``turbulence`` : bool       Dryden turbulence on (default True)
-``switch_s`` : float/None   time of the gain switch (default: mid-run; None: no switch)
+``switch_s`` : float/None   time of the gain switch (default: mid-run; None or "none": no switch)
 ``switch_to`` : str         gain set of the vehicle switched to (default ``optimal``, else ``optimal-flight``)
 """
 
@@ -49,7 +49,11 @@ def setup(ctx: Context) -> Setup:
             raise ConfigError("Dryden turbulence is advected by the mean wind", field="options.wind_mps",
                               expected="> 0 m/s with turbulence on", got=o["wind_mps"])
         dist.append(DrydenWind(o["wind_mps"], HOVER_HEIGHT_M, ctx.duration_s, o["from_deg"]))
-    t_sw = ctx.duration_s / 2 if o["switch_s"] == "mid" else o["switch_s"]
+    t_sw = {"mid": ctx.duration_s / 2, "none": None}.get(o["switch_s"], o["switch_s"])
+    if t_sw is not None and (isinstance(t_sw, (str, bool)) or not isinstance(t_sw, (int, float))):
+        # a TOML option value cannot be None: the CLI says "none" (a vehicle without an optimal gain set)
+        raise ConfigError("the gain switch time", field="options.switch_s",
+                          expected='"mid", "none" (no switch) or a time in s', got=t_sw)
     schedule = [(float(t_sw), _switch_gains(ctx.vehicle, o["switch_to"]))] if t_sw is not None else []
     return Setup(mode="position", disturbances=dist, schedule=schedule,
                  notes={"switch_s": t_sw, "switch_to": schedule[0][1].name if schedule else None})
