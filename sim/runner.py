@@ -14,6 +14,7 @@ from rotorlab import atomic
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import GainSet, load_gains
 from rotorlab.sim import scenarios
+from rotorlab.sim.control.autopilot import AutopilotController, AutopilotSpec
 from rotorlab.sim.control.flight_software import FlightSoftware
 from rotorlab.sim.control.position import PositionGains
 from rotorlab.sim.control.statespace import StateSpaceController, as_controller_spec
@@ -86,19 +87,26 @@ def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: fl
 
 def controller_plugins(controller, fs: FlightSoftware) -> list:
     """Plug-ins for ``controller``: a :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a controller
-    file, or a list of them (e.g. one per axis). Each sees the flight software's saturation of the commands it
-    sets, so an anti-windup compensator acts on exactly the part the flight software cuts off."""
+    file, an :class:`~rotorlab.sim.control.autopilot.AutopilotSpec` (an autopilot's own laws on all three axes, at
+    the flight-software rate), or a list of them (e.g. one per axis). Each sees the flight software's saturation of
+    the commands it sets, so an anti-windup compensator acts on exactly the part the flight software cuts off."""
     specs = controller if isinstance(controller, (list, tuple)) else [controller]
     limits = {"u_lat": fs.u_limit_pct, "u_lon": fs.u_limit_pct, "u_yaw": fs.yaw_u_limit_pct}
     seen, out = set(), []
     for obj in specs:
-        spec = as_controller_spec(obj)
-        clash = seen & set(spec.outputs)
+        if isinstance(obj, AutopilotSpec):
+            plugin = AutopilotController(obj, fs.dt, fs.u_limit_pct, fs.yaw_u_limit_pct)
+            outputs = plugin.outputs
+        else:
+            spec = as_controller_spec(obj)
+            outputs = spec.outputs
+            plugin = StateSpaceController(spec, fs.dt, [limits.get(o, float("inf")) for o in spec.outputs])
+        clash = seen & set(outputs)
         if clash:
             raise ConfigError("two controllers set the same command", field="controller",
                               expected="each command set by at most one controller", got=sorted(clash))
-        seen |= set(spec.outputs)
-        out.append(StateSpaceController(spec, fs.dt, [limits.get(o, float("inf")) for o in spec.outputs]))
+        seen |= set(outputs)
+        out.append(plugin)
     return out
 
 
@@ -204,6 +212,11 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     if ctl:
         info["controller"] = [{"name": c.name, "dt_s": c.dt_s, "inputs": list(c.inputs), "outputs": list(c.outputs),
                                "states": c.nstates, "antiwindup": c.antiwindup is not None} for c in ctl]
+    aps = [pl for pl in fs.plugins if isinstance(pl, AutopilotController)]
+    if aps:
+        info.setdefault("controller", []).extend(
+            {"name": pl.spec.name, "autopilot": pl.spec.autopilot, "dt_s": pl.dt, "outputs": list(pl.outputs),
+             "params": dict(pl.spec.params), "defaulted": list(pl.spec.defaulted)} for pl in aps)
     metrics_fn = getattr(mod, "metrics", None)
     info["metrics"] = metrics_fn(log, ctx, setup) if metrics_fn else {}
     out_dir = write_run(out, log, info) if out is not None else None

@@ -12,6 +12,9 @@ Each autopilot is one module with the same interface, registered in :data:`AUTOP
   steps once per tick;
 * ``FILE_FORMAT``: the ground station's parameter file it reads and writes (``"qgc"`` .params, ``"parm"``).
 
+:func:`closed_loop_lti` closes an autopilot's attitude and rate loops (or the rate loop alone) around a plant model
+at the loop rate: the linear analysis of what the flight software flies.
+
 This package is on the ground floor: it imports neither MuJoCo nor ``rotorlab.sim``, ``.ident`` or ``.tune``.
 
 Examples
@@ -29,11 +32,12 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from rotorlab.autopilots import ardupilot, px4
+from rotorlab.autopilots.loops import closed_loop_lti
 from rotorlab.autopilots.params import read_mp_parm, read_params, read_qgc_params, write_mp_parm, write_qgc_params
 from rotorlab.errors import UnknownNameError
 
 __all__ = ["AUTOPILOTS", "get", "read_params", "read_qgc_params", "read_mp_parm", "write_params",
-           "ardupilot", "px4"]
+           "closed_loop_lti", "ardupilot", "px4"]
 
 AUTOPILOTS = {px4.NAME: px4, ardupilot.NAME: ardupilot}
 

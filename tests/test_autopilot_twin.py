@@ -1,0 +1,121 @@
+"""The autopilots' own laws flown in the twin (sim/control/autopilot.py): the closed loop the tuhh-quad flies at
+250 Hz equals the linear analysis of the same laws (rotorlab.autopilots.closed_loop_lti) around the twin's true
+linearisation (sim/linearize.py) at the loop rate."""
+
+import math
+
+import control as ct
+import numpy as np
+import pytest
+
+from rotorlab import autopilots
+from rotorlab.designs import resolve_controller
+from rotorlab.errors import ConfigError
+from rotorlab.sim.control.autopilot import AutopilotController, AutopilotSpec, euler_to_quat, parse_autopilot
+from rotorlab.sim.linearize import linearize
+from rotorlab.sim.runner import make_flight_software, resolve_gains, run_scenario
+from rotorlab.sim.scenarios import Setup
+from rotorlab.sim.simulator import Simulator
+from rotorlab.vehicles import load_vehicle
+
+D2R = math.pi / 180
+SIGNALS = {"roll": ("phi", "p"), "pitch": ("theta", "q"), "yaw": ("psi", "r")}
+
+
+def _lifted_plant(v, axis, dt):
+    """The twin's linearisation (1 ms, delays included) from the axis command to [rate, angle], held over the
+    loop period and sampled at it, in the laws' units: normalised torque in (100 % each), rad/s and rad out."""
+    P1 = linearize("free-flight", v, input=axis, output=[f"gyro_{axis}", f"angle_{axis}"])
+    n = int(round(dt / P1.dt))
+    A1, B1 = np.asarray(P1.A), np.asarray(P1.B)
+    A = np.linalg.matrix_power(A1, n)
+    B = sum(np.linalg.matrix_power(A1, i) for i in range(n)) @ B1
+    return ct.ss(A, B * 100.0, np.asarray(P1.C) * D2R, np.asarray(P1.D) * 100.0 * D2R, dt)
+
+
+@pytest.mark.parametrize("autopilot, axis, loop, step", [
+    ("px4", "roll", "attitude", 1.0), ("px4", "yaw", "attitude", 2.0), ("px4", "pitch", "rate", 5.0),
+    ("ardupilot", "pitch", "attitude", 1.0), ("ardupilot", "yaw", "rate", 5.0),
+])
+def test_the_twin_flies_the_linear_analysis_of_the_autopilot_laws(autopilot, axis, loop, step):
+    v = load_vehicle("tuhh-quad")
+    spec = AutopilotSpec.from_params(autopilot)
+    ang, rate = SIGNALS[axis]
+    sim = Simulator("free-flight", v, sensor_noise=False)
+    dt = sim.control_dt_s
+    t0 = 0.1
+    on = lambda t: t >= t0 - 1e-9  # noqa: E731
+    if loop == "attitude":
+        setup = Setup(mode="cascade", reference=lambda t: {f"{ang}_ref": step if on(t) else 0.0})
+        fs = make_flight_software(v, resolve_gains(v, None), setup, dt, controller=spec)
+    else:
+        setup = Setup(mode="cascade")
+        fs = make_flight_software(v, resolve_gains(v, None), setup, dt)
+        k = ("roll", "pitch", "yaw").index(axis)
+        fs.plugins.append(AutopilotController(spec, dt, fs.u_limit_pct, fs.yaw_u_limit_pct,
+                                              rate_reference=lambda t: np.eye(3)[k] * (step if on(t) else 0.0)))
+    n = int(round(1.5 / dt))
+    sig, got = {}, []
+    for _ in range(n):
+        t = sim.time
+        sim.measure(sig)
+        sim.set_rotor_commands(fs.step_signals(t, sig))
+        got.append((sig[rate], sig[ang]))
+        sim.tick()
+    got = np.array(got) - np.array(got[0])
+    T = autopilots.closed_loop_lti(autopilot, spec.params, axis, _lifted_plant(v, axis, dt), loop=loop)
+    u = np.where(np.arange(n) * dt >= t0 - 1e-9, step * D2R, 0.0)
+    A, B, C, D = (np.asarray(M) for M in (T.A, T.B, T.C, T.D))
+    x, want = np.zeros(A.shape[0]), []
+    for uk in u:
+        want.append((C @ x + D[:, 0] * uk)[:2] / D2R)
+        x = A @ x + B[:, 0] * uk
+    want = np.array(want)
+    # rate (deg/s) and angle (deg) within 1.5 % of their peaks: what is left are the twin's nonlinearities
+    # (rotor speed map, quaternion attitude error, i_factor) at these small steps
+    for j in range(2):
+        peak = np.max(np.abs(want[:, j]))
+        assert peak > 0.2 * step
+        err = np.max(np.abs(got[:, j] - want[:, j]))
+        assert err < 0.015 * peak
+
+
+def test_run_scenario_flies_an_autopilot_and_records_its_parameters():
+    spec = AutopilotSpec.from_params("ardupilot", {"ATC_RAT_PIT_P": 0.1}, source="tuned.parm")
+    res = run_scenario("setpoint", "tuhh-quad", scene="pitch-rig", controller=spec, duration_s=3.0)
+    assert res.stopped is None
+    step = res.metrics["steps"][0]
+    assert 0.05 < step["rise_time_s"] < 1.0 and abs(step["steady_state_error"]) < 0.02
+    c = res.info["controller"][0]
+    assert c["name"] == "ardupilot:tuned.parm" and c["params"]["ATC_RAT_PIT_P"] == 0.1
+    assert "ATC_RAT_PIT_P" not in c["defaulted"] and "ATC_RAT_RLL_P" in c["defaulted"]
+    assert c["dt_s"] == pytest.approx(1 / 250)
+
+
+def test_controller_values_parse_to_autopilots(tmp_path):
+    assert resolve_controller("px4:defaults", None).params == autopilots.px4.TABLE.defaults()
+    path = tmp_path / "tuned.params"
+    autopilots.write_params("px4", path, {"MC_ROLLRATE_P": 0.2}, "tuned")
+    spec = resolve_controller(f"px4:{path}", None)
+    assert spec.params["MC_ROLLRATE_P"] == 0.2 and spec.source == str(path)
+    assert parse_autopilot("betaflight:defaults") is None
+    with pytest.raises(ConfigError, match="parameter file not found"):
+        parse_autopilot(f"ardupilot:{tmp_path / 'missing.parm'}")
+
+
+def test_euler_to_quat_is_the_yaw_pitch_roll_rotation():
+    phi, theta, psi = 0.3, -0.2, 1.1
+    q = euler_to_quat(phi, theta, psi)
+
+    def axis_quat(ax, a):
+        v = np.zeros(4)
+        v[0], v[1 + ax] = math.cos(a / 2), math.sin(a / 2)
+        return v
+
+    def mul(a, b):
+        w1, x1, y1, z1 = a
+        w2, x2, y2, z2 = b
+        return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                         w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+    np.testing.assert_allclose(q, mul(mul(axis_quat(2, psi), axis_quat(1, theta)), axis_quat(0, phi)), atol=1e-15)
