@@ -34,27 +34,10 @@ from pathlib import Path
 from rotorlab.autopilots import ardupilot, px4
 from rotorlab.autopilots.loops import closed_loop_lti
 from rotorlab.autopilots.params import read_mp_parm, read_params, read_qgc_params, write_mp_parm, write_qgc_params
-from rotorlab.errors import UnknownNameError
+from rotorlab.autopilots.registry import AUTOPILOTS, get
 
 __all__ = ["AUTOPILOTS", "get", "read_params", "read_qgc_params", "read_mp_parm", "write_params",
            "closed_loop_lti", "ardupilot", "px4"]
-
-AUTOPILOTS = {px4.NAME: px4, ardupilot.NAME: ardupilot}
-
-
-def get(name: str):
-    """The autopilot module registered under ``name`` (``"px4"``, ``"ardupilot"``).
-
-    Raises
-    ------
-    rotorlab.errors.UnknownNameError
-        Listing the registered names.
-    """
-    try:
-        return AUTOPILOTS[name]
-    except KeyError:
-        raise UnknownNameError("autopilot", name, AUTOPILOTS) from None
-
 
 def write_params(autopilot: str, path, params: Mapping[str, float], header: str) -> Path:
     """Write a tuned parameter set in the autopilot's own file format (QGroundControl .params for PX4, Mission

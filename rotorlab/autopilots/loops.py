@@ -7,6 +7,8 @@ from collections.abc import Mapping
 import control as ct
 import numpy as np
 
+from rotorlab.autopilots.registry import get
+
 __all__ = ["closed_loop_lti"]
 
 
@@ -46,8 +48,6 @@ def closed_loop_lti(autopilot, params: Mapping[str, float], axis: str, plant: ct
     >>> T.input_labels, T.output_labels
     (['angle_sp'], ['rate', 'angle', 'torque'])
     """
-    from rotorlab.autopilots import get
-
     ap = get(autopilot) if isinstance(autopilot, str) else autopilot
     dt = float(plant.dt)
     has_angle = plant.noutputs >= 2
