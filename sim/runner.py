@@ -81,7 +81,11 @@ def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: fl
         excitation=setup.excitation or None, altitude_hold=setup.altitude_hold, n=n,
     )
     if controller is not None:
-        fs.plugins.extend(controller_plugins(controller, fs))
+        plugins = controller_plugins(controller, fs)
+        fs.plugins.extend(plugins)
+        for pl in plugins:
+            if isinstance(pl, AutopilotController):
+                fs.attitude_by_plugin = pl.add_commands = True
     return fs
 
 

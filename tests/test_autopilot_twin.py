@@ -119,3 +119,17 @@ def test_euler_to_quat_is_the_yaw_pitch_roll_rotation():
                          w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
 
     np.testing.assert_allclose(q, mul(mul(axis_quat(2, psi), axis_quat(1, theta)), axis_quat(0, phi)), atol=1e-15)
+
+
+def test_with_the_autopilot_flying_the_cascade_is_off_and_command_excitation_still_reaches_the_mixer():
+    v = load_vehicle("tuhh-quad")
+    spec = AutopilotSpec.from_params("px4")
+    runs = {}
+    for exc in (None, {"u_lon": [7.0, 7.0]}):
+        fs = make_flight_software(v, resolve_gains(v, None), Setup(mode="cascade", excitation=exc), 1 / 250,
+                                  controller=spec)
+        assert fs.attitude_by_plugin
+        sig = dict(phi=0.0, theta=0.0, psi=0.0, p=0.0, q=0.0, r=0.0)
+        fs.step_signals(0.0, sig)
+        runs[exc is None] = sig["u_lon"]
+    assert runs[True] == 0.0 and runs[False] == pytest.approx(7.0, abs=1e-12)

@@ -175,7 +175,7 @@ def attitude_controller_lti(params: Mapping[str, float], axis: str, dt_s: float)
 
 
 class RateController:
-    """ArduPilot's three AC_PID rate controllers (plus feed-forward), one call per loop tick.
+    """ArduPilot's three AC_PID rate controllers (plus feed-forward), one call per loop tick, in plain floats.
 
     Parameters
     ----------
@@ -186,90 +186,110 @@ class RateController:
     gyro_filter : bool
         Run INS_GYRO_FILTER on the ``rate`` given to :meth:`step` (False when it is already filtered).
 
+    Attributes
+    ----------
+    integral : list of float
+        The integrators (normalised output; ArduPilot's PID log ``I``).
+
     Examples
     --------
     >>> from rotorlab.autopilots import ardupilot
     >>> rc = ardupilot.RateController(ardupilot.TABLE.defaults(), 1 / 400)
     >>> _ = rc.step([0.0] * 3, [0.0] * 3)
-    >>> round(float(rc.step([1.0, 0.0, 0.0], [0.0] * 3)[0]), 5) > 0
+    >>> rc.step([1.0, 0.0, 0.0], [0.0] * 3)[0] > 0
     True
     """
 
     def __init__(self, params: Mapping[str, float], dt_s: float, gyro_filter: bool = True):
         self.dt = float(dt_s)
-        g = np.array([_gains(params, a) for a in AXES])
-        self.kp, self.ki, self.kd, self.ff, self.imax = (g[:, j].copy() for j in range(5))
-        self.a_t = np.array([filters.alpha_lowpass(self.dt, f) for f in g[:, 5]])
-        self.a_e = np.array([filters.alpha_lowpass(self.dt, f) for f in g[:, 6]])
-        self.a_d = np.array([filters.alpha_lowpass(self.dt, f) for f in g[:, 7]])
-        self._gyro = (filters.Butter2(1.0 / self.dt, float(params["INS_GYRO_FILTER"]), 3) if gyro_filter else None)
+        self._axes = []
+        for a in AXES:
+            kp, ki, kd, ff, imax, f_t, f_e, f_d = _gains(params, a)
+            self._axes.append((kp, ki, kd, ff, imax, filters.alpha_lowpass(self.dt, f_t),
+                               filters.alpha_lowpass(self.dt, f_e), filters.alpha_lowpass(self.dt, f_d)))
+        b, a_ = filters.butter2_coeffs(1.0 / self.dt, float(params["INS_GYRO_FILTER"]) if gyro_filter else 0.0)
+        self._gyro = (*(float(v) for v in b), float(a_[1]), float(a_[2]))
         self.reset()
 
     def reset(self) -> None:
-        """Zero the integrator and filters; the next call re-initialises the filters from its inputs."""
-        if self._gyro is not None:
-            self._gyro.reset(0.0)
-        self.target = np.zeros(3)
-        self.error = np.zeros(3)
-        self.derivative = np.zeros(3)
-        self.integral = np.zeros(3)
+        """Zero the integrators and filters; the next call re-initialises the filters from its inputs."""
+        self._g = [[0.0, 0.0] for _ in AXES]
+        self.target = [0.0, 0.0, 0.0]
+        self.error = [0.0, 0.0, 0.0]
+        self.derivative = [0.0, 0.0, 0.0]
+        self.integral = [0.0, 0.0, 0.0]
         self._reset_filter = True
 
-    def step(self, rate_sp, rate, limit=None) -> np.ndarray:
-        """One tick: normalised ``[roll, pitch, yaw]`` command from the rate target and the gyro (rad/s).
+    def step(self, rate_sp, rate, limit=None) -> tuple:
+        """One tick: normalised ``(roll, pitch, yaw)`` command from the rate target and the gyro (rad/s).
 
         ``limit`` (bool per axis): the motors report saturation on that axis, so the integrator may only shrink.
         """
-        r = np.asarray(rate_sp, dtype=float)
-        y = self._gyro.apply(np.asarray(rate, dtype=float)) if self._gyro is not None else np.asarray(rate, float)
-        if self._reset_filter:
-            self._reset_filter = False
-            self.target = r.copy()
-            self.error = r - y
-            self.derivative = np.zeros(3)
-        else:
-            e_last = self.error
-            self.target = self.target + self.a_t * (r - self.target)
-            self.error = self.error + self.a_e * ((self.target - y) - self.error)
-            self.derivative = self.derivative + self.a_d * ((self.error - e_last) / self.dt - self.derivative)
-        grow = np.ones(3, dtype=bool) if limit is None else ~np.asarray(limit, dtype=bool)
-        shrink = ((self.integral > 0) & (self.error < 0)) | ((self.integral < 0) & (self.error > 0))
-        upd = (grow | shrink) & (self.ki != 0)
-        nxt = np.clip(self.integral + self.error * self.ki * self.dt, -self.imax, self.imax)
-        self.integral = np.where(self.ki == 0, 0.0, np.where(upd, nxt, self.integral))
-        return self.kp * self.error + self.integral + self.kd * self.derivative + self.ff * self.target
+        gb0, gb1, gb2, ga1, ga2 = self._gyro
+        dt = self.dt
+        first = self._reset_filter
+        self._reset_filter = False
+        out = [0.0, 0.0, 0.0]
+        for i in range(3):
+            kp, ki, kd, ff, imax, a_t, a_e, a_d = self._axes[i]
+            r = float(rate_sp[i])
+            g = self._g[i]
+            x0 = float(rate[i]) - ga1 * g[0] - ga2 * g[1]
+            y = gb0 * x0 + gb1 * g[0] + gb2 * g[1]
+            g[1], g[0] = g[0], x0
+            if first:
+                t, e, d = r, r - y, 0.0
+            else:
+                t = self.target[i]
+                t += a_t * (r - t)
+                e_last = self.error[i]
+                e = e_last + a_e * ((t - y) - e_last)
+                d = self.derivative[i]
+                d += a_d * ((e - e_last) / dt - d)
+            self.target[i], self.error[i], self.derivative[i] = t, e, d
+            integ = self.integral[i]
+            if ki == 0.0:
+                integ = 0.0
+            elif limit is None or not limit[i] or (integ > 0 and e < 0) or (integ < 0 and e > 0):
+                integ += e * ki * dt
+                integ = imax if integ > imax else (-imax if integ < -imax else integ)
+            self.integral[i] = integ
+            out[i] = kp * e + integ + kd * d + ff * t
+        return tuple(out)
 
 
 class AttitudeController:
     """ArduPilot's angle P: body rate target from the per-axis attitude error, limited to ATC_RATE_*_MAX.
 
-    The error is the rotation vector of ``q^-1 q_sp`` (quaternions ``[w, x, y, z]``, body to world).
+    The error is the rotation vector of ``q^-1 q_sp`` (quaternions ``(w, x, y, z)``, body to world).
 
     Examples
     --------
     >>> import math
     >>> from rotorlab.autopilots import ardupilot
     >>> att = ardupilot.AttitudeController(ardupilot.TABLE.defaults())
-    >>> [round(float(v), 4) for v in att.update([1, 0, 0, 0], [math.cos(0.05), math.sin(0.05), 0, 0])]
+    >>> [round(v, 4) for v in att.update((1, 0, 0, 0), (math.cos(0.05), math.sin(0.05), 0, 0))]
     [0.45, 0.0, 0.0]
     """
 
     def __init__(self, params: Mapping[str, float]):
-        self.p = np.array([float(params[axis_names(a)["ANG_P"]]) for a in AXES])
-        lim = np.radians([float(params[_RATE_MAX[a]]) for a in AXES])
-        self.rate_limit = np.where(lim > 0, lim, np.inf)
+        self.p = tuple(float(params[axis_names(a)["ANG_P"]]) for a in AXES)
+        lim = (math.radians(float(params[_RATE_MAX[a]])) for a in AXES)
+        self.rate_limit = tuple(v if v > 0 else math.inf for v in lim)
 
-    def update(self, q, q_sp) -> np.ndarray:
-        """Body rate target, rad/s, from the attitude ``q`` and its set-point ``q_sp`` (unit quaternions)."""
-        q = np.asarray(q, dtype=float)
-        qs = np.asarray(q_sp, dtype=float)
-        # q^-1 q_sp for unit quaternions
-        w1, x1, y1, z1 = q[0], -q[1], -q[2], -q[3]
-        w2, x2, y2, z2 = qs
-        qe = np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                       w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-        if qe[0] < 0:
-            qe = -qe
-        s = float(np.linalg.norm(qe[1:]))
-        err = np.zeros(3) if s < 1e-12 else qe[1:] / s * 2.0 * math.atan2(s, qe[0])
-        return np.clip(self.p * err, -self.rate_limit, self.rate_limit)
+    def update(self, q, q_sp) -> tuple:
+        """Body rate target ``(p, q, r)``, rad/s, from the attitude ``q`` and its set-point ``q_sp``."""
+        w1, x1, y1, z1 = float(q[0]), -float(q[1]), -float(q[2]), -float(q[3])  # q^-1 of a unit quaternion
+        w2, x2, y2, z2 = (float(v) for v in q_sp)
+        w = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+        v = (w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2, w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+             w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
+        if w < 0:
+            w, v = -w, tuple(-c for c in v)
+        s = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        k = 0.0 if s < 1e-12 else 2.0 * math.atan2(s, w) / s
+        out = []
+        for i in range(3):
+            r, lim = self.p[i] * v[i] * k, self.rate_limit[i]
+            out.append(lim if r > lim else (-lim if r < -lim else r))
+        return tuple(out)

@@ -24,7 +24,7 @@ import math
 import control as ct
 import numpy as np
 
-__all__ = ["butter2_coeffs", "butter2_ss", "alpha_lowpass", "alpha_ss", "Butter2", "AlphaLowpass"]
+__all__ = ["butter2_coeffs", "butter2_ss", "alpha_lowpass", "alpha_ss"]
 
 
 def butter2_coeffs(sample_hz: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -79,44 +79,3 @@ def alpha_ss(dt_s: float, cutoff_hz: float) -> ct.StateSpace:
         return ct.ss([], [], [], [[1.0]], dt_s)
     # y[k] = (1-a) y[k-1] + a u[k]; state x[k] = y[k-1]
     return ct.ss([[1.0 - a]], [[a]], [[1.0 - a]], [[a]], dt_s)
-
-
-class Butter2:
-    """Stateful :func:`butter2_coeffs` filter on a vector of channels (direct form II, as PX4 runs it)."""
-
-    def __init__(self, sample_hz: float, cutoff_hz, n: int = 1):
-        cut = np.broadcast_to(np.asarray(cutoff_hz, dtype=float), (n,))
-        co = [butter2_coeffs(sample_hz, c) for c in cut]
-        self.b = np.array([c[0] for c in co])
-        self.a = np.array([c[1] for c in co])
-        self.w1 = np.zeros(n)
-        self.w2 = np.zeros(n)
-
-    def reset(self, value=0.0) -> None:
-        """State of a filter that has seen ``value`` forever (PX4's ``reset(sample)``)."""
-        w = np.asarray(value, dtype=float) / self.b.sum(axis=1)
-        self.w1 = np.broadcast_to(w, self.w1.shape).copy()
-        self.w2 = self.w1.copy()
-
-    def apply(self, u) -> np.ndarray:
-        w0 = u - self.a[:, 1] * self.w1 - self.a[:, 2] * self.w2
-        y = self.b[:, 0] * w0 + self.b[:, 1] * self.w1 + self.b[:, 2] * self.w2
-        self.w2 = self.w1
-        self.w1 = w0
-        return y
-
-
-class AlphaLowpass:
-    """Stateful :func:`alpha_lowpass` filter on a vector of channels."""
-
-    def __init__(self, dt_s: float, cutoff_hz, n: int = 1):
-        cut = np.broadcast_to(np.asarray(cutoff_hz, dtype=float), (n,))
-        self.alpha = np.array([alpha_lowpass(dt_s, c) for c in cut])
-        self.y = np.zeros(n)
-
-    def reset(self, value=0.0) -> None:
-        self.y = np.broadcast_to(np.asarray(value, dtype=float), self.y.shape).copy()
-
-    def apply(self, u) -> np.ndarray:
-        self.y = self.y + self.alpha * (u - self.y)
-        return self.y

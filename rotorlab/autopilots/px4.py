@@ -36,7 +36,6 @@ import math
 from collections.abc import Mapping
 
 import control as ct
-import numpy as np
 
 from rotorlab.autopilots import filters
 from rotorlab.autopilots.params import ParamSpec, ParamTable
@@ -199,6 +198,9 @@ def attitude_controller_lti(params: Mapping[str, float], axis: str, dt_s: float)
 class RateController:
     """PX4's three-axis rate law as the flight software runs it, one call per loop tick.
 
+    Plain floats per axis: a tick costs a few microseconds, where numpy's per-call overhead on 3-vectors would
+    cost several times the arithmetic.
+
     Parameters
     ----------
     params : mapping
@@ -210,102 +212,121 @@ class RateController:
 
     Attributes
     ----------
-    integral : ndarray
+    integral : list of float
         The integrator, per axis (normalised torque; PX4's ``rate_ctrl_status`` ``*speed_integ``).
-    rate_error : ndarray
+    rate_error : list of float
         The last tick's rate error ``r - w``, rad/s.
 
     Examples
     --------
     >>> from rotorlab.autopilots import px4
     >>> rc = px4.RateController(px4.TABLE.defaults(), 1 / 400)
-    >>> [round(float(v), 4) for v in rc.step([0.1, 0.0, 0.0], [0.0, 0.0, 0.0])]  # P kick, no D kick
+    >>> [round(v, 4) for v in rc.step([0.1, 0.0, 0.0], [0.0, 0.0, 0.0])]  # P kick, no D kick
     [0.015, 0.0, 0.0]
     """
 
     def __init__(self, params: Mapping[str, float], dt_s: float, gyro_filter: bool = True):
         self.dt = float(dt_s)
-        g = np.array([_gains(params, a) for a in AXES])
-        self.kp, self.ki, self.kd, self.ff, self.int_lim = (g[:, j].copy() for j in range(5))
+        self._gains = [_gains(params, a) for a in AXES]
         fs = 1.0 / self.dt
-        self._gyro = filters.Butter2(fs, float(params["IMU_GYRO_CUTOFF"]), 3) if gyro_filter else None
-        self._dterm = filters.Butter2(fs, float(params["IMU_DGYRO_CUTOFF"]), 3)
-        self._yaw = filters.AlphaLowpass(self.dt, float(params["MC_YAW_TQ_CUTOFF"]), 1)
+        bg, ag = filters.butter2_coeffs(fs, float(params["IMU_GYRO_CUTOFF"]) if gyro_filter else 0.0)
+        bd, ad = filters.butter2_coeffs(fs, float(params["IMU_DGYRO_CUTOFF"]))
+        self._gyro = (*(float(v) for v in bg), float(ag[1]), float(ag[2]))
+        self._dterm = (*(float(v) for v in bd), float(ad[1]), float(ad[2]))
+        self._yaw_alpha = filters.alpha_lowpass(self.dt, float(params["MC_YAW_TQ_CUTOFF"]))
         self.reset()
 
     def reset(self) -> None:
         """Zero the integrator and every filter (PX4 at arming)."""
-        if self._gyro is not None:
-            self._gyro.reset(0.0)
-        self._dterm.reset(0.0)
-        self._yaw.reset(0.0)
-        self.w_prev = np.zeros(3)
-        self.integral = np.zeros(3)
-        self.rate_error = np.zeros(3)
+        # direct form II states (w[k-1], w[k-2]) of the gyro and D-term filters, per axis
+        self._g = [[0.0, 0.0] for _ in AXES]
+        self._d = [[0.0, 0.0] for _ in AXES]
+        self._w_prev = [0.0, 0.0, 0.0]
+        self._yaw_y = 0.0
+        self.integral = [0.0, 0.0, 0.0]
+        self.rate_error = [0.0, 0.0, 0.0]
 
-    def step(self, rate_sp, rate, sat_pos=None, sat_neg=None, landed: bool = False) -> np.ndarray:
-        """One tick: normalised torque ``[roll, pitch, yaw]`` from the set-point and the gyro (rad/s).
+    def step(self, rate_sp, rate, sat_pos=None, sat_neg=None, landed: bool = False) -> tuple:
+        """One tick: normalised torque ``(roll, pitch, yaw)`` from the set-point and the gyro (rad/s).
 
         ``sat_pos`` / ``sat_neg`` (bool per axis) are the allocator's saturation flags; ``landed`` freezes the
         integrator. The output is not clipped (the mixer saturates).
         """
-        r = np.asarray(rate_sp, dtype=float)
-        w = self._gyro.apply(np.asarray(rate, dtype=float)) if self._gyro is not None else np.asarray(rate, float)
-        acc = self._dterm.apply((w - self.w_prev) / self.dt)
-        self.w_prev = w
-        e = r - w
-        self.rate_error = e
-        u = self.kp * e + self.integral - self.kd * acc + self.ff * r
-        if not landed:
-            ei = e
-            if sat_pos is not None:
-                ei = np.where(sat_pos, np.minimum(ei, 0.0), ei)
-            if sat_neg is not None:
-                ei = np.where(sat_neg, np.maximum(ei, 0.0), ei)
-            f = np.maximum(0.0, 1.0 - (ei / _I_FACTOR_RAD_S) ** 2)
-            nxt = self.integral + f * self.ki * ei * self.dt
-            ok = np.isfinite(nxt)
-            self.integral = np.where(ok, np.clip(nxt, -self.int_lim, self.int_lim), self.integral)
-        u[2] = self._yaw.apply(u[2:3])[0]
-        return u
+        gb0, gb1, gb2, ga1, ga2 = self._gyro
+        db0, db1, db2, da1, da2 = self._dterm
+        dt = self.dt
+        out = [0.0, 0.0, 0.0]
+        for i in range(3):
+            kp, ki, kd, ff, lim = self._gains[i]
+            r = float(rate_sp[i])
+            g = self._g[i]
+            x0 = float(rate[i]) - ga1 * g[0] - ga2 * g[1]
+            w = gb0 * x0 + gb1 * g[0] + gb2 * g[1]
+            g[1], g[0] = g[0], x0
+            d = self._d[i]
+            x0 = (w - self._w_prev[i]) / dt - da1 * d[0] - da2 * d[1]
+            acc = db0 * x0 + db1 * d[0] + db2 * d[1]
+            d[1], d[0] = d[0], x0
+            self._w_prev[i] = w
+            e = r - w
+            self.rate_error[i] = e
+            out[i] = kp * e + self.integral[i] - kd * acc + ff * r
+            if not landed:
+                if sat_pos is not None and sat_pos[i] and e > 0.0:
+                    e = 0.0
+                if sat_neg is not None and sat_neg[i] and e < 0.0:
+                    e = 0.0
+                f = e / _I_FACTOR_RAD_S
+                f = 1.0 - f * f
+                nxt = self.integral[i] + (f if f > 0.0 else 0.0) * ki * e * dt
+                if math.isfinite(nxt):
+                    self.integral[i] = lim if nxt > lim else (-lim if nxt < -lim else nxt)
+        self._yaw_y += self._yaw_alpha * (out[2] - self._yaw_y)
+        out[2] = self._yaw_y
+        return tuple(out)
 
 
 def _qmul(a, b):
     w1, x1, y1, z1 = a
     w2, x2, y2, z2 = b
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+    return (w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
 
 
 def _qinv(q):
-    return np.array([q[0], -q[1], -q[2], -q[3]]) / float(np.dot(q, q))
+    w, x, y, z = q
+    n = w * w + x * x + y * y + z * z
+    return (w / n, -x / n, -y / n, -z / n)
 
 
 def _canonical(q):
     # the one of q, -q whose first non-zero component is positive (PX4 Quaternion::canonical)
     for c in q:
         if c != 0.0:
-            return q if c > 0 else -q
+            return q if c > 0 else tuple(-v for v in q)
     return q
 
 
 def _dcm_z(q):
-    """Third column of the rotation matrix of ``q`` = [w, x, y, z] (the body z axis in the world frame)."""
+    """Third column of the rotation matrix of ``q`` = (w, x, y, z) (the body z axis in the world frame)."""
     w, x, y, z = q
-    return np.array([2 * (w * y + x * z), 2 * (y * z - w * x), w * w - x * x - y * y + z * z])
+    return (2 * (w * y + x * z), 2 * (y * z - w * x), w * w - x * x - y * y + z * z)
 
 
 def _shortest_arc(src, dst, eps=1e-5):
     """Unit quaternion of the smallest rotation taking direction ``src`` to ``dst``."""
-    cr = np.cross(src, dst)
-    d = float(np.dot(src, dst))
-    if np.linalg.norm(cr) < eps and d < 0:
-        # opposite directions: a half turn about any axis normal to src
-        ax = np.cross(src, [1.0, 0.0, 0.0] if abs(src[0]) < 0.9 else [0.0, 1.0, 0.0])
-        q = np.array([0.0, *ax])
+    sx, sy, sz = src
+    dx, dy, dz = dst
+    cx, cy, cz = sy * dz - sz * dy, sz * dx - sx * dz, sx * dy - sy * dx
+    d = sx * dx + sy * dy + sz * dz
+    if math.sqrt(cx * cx + cy * cy + cz * cz) < eps and d < 0:
+        # opposite directions: a half turn about an axis normal to src
+        ox, oy, oz = (1.0, 0.0, 0.0) if abs(sx) < 0.9 else (0.0, 1.0, 0.0)
+        q = (0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox)
     else:
-        q = np.array([d + math.sqrt(float(np.dot(src, src) * np.dot(dst, dst))), *cr])
-    return q / np.linalg.norm(q)
+        q = (d + math.sqrt((sx * sx + sy * sy + sz * sz) * (dx * dx + dy * dy + dz * dz)), cx, cy, cz)
+    n = math.sqrt(sum(v * v for v in q))
+    return tuple(v / n for v in q)
 
 
 class AttitudeController:
@@ -315,7 +336,7 @@ class AttitudeController:
     body z axis onto the desired one), then the yaw part of the remaining rotation is scaled by MC_YAW_WEIGHT; the
     error is ``2 imag(canonical(q^-1 q_d))`` (sin of half the angle times the axis, times 2), multiplied per axis by
     MC_ROLL_P, MC_PITCH_P and MC_YAW_P / MC_YAW_WEIGHT, plus the world-z yaw-rate feed-forward, and each axis is
-    limited to MC_*RATE_MAX. Quaternions are ``[w, x, y, z]``, body to world (MuJoCo's convention).
+    limited to MC_*RATE_MAX. Quaternions are ``(w, x, y, z)``, body to world (FRD body, NED world as PX4).
 
     Examples
     --------
@@ -323,23 +344,23 @@ class AttitudeController:
     >>> from rotorlab.autopilots import px4
     >>> att = px4.AttitudeController(px4.TABLE.defaults())
     >>> h = 0.05  # half of a 0.1 rad roll set-point
-    >>> [round(float(v), 4) for v in att.update([1, 0, 0, 0], [math.cos(h), math.sin(h), 0, 0])]
+    >>> [round(v, 4) for v in att.update((1, 0, 0, 0), (math.cos(h), math.sin(h), 0, 0))]
     [0.3998, 0.0, 0.0]
     """
 
     def __init__(self, params: Mapping[str, float]):
         w = min(max(float(params["MC_YAW_WEIGHT"]), 0.0), 1.0)
-        p = np.array([float(params["MC_ROLL_P"]), float(params["MC_PITCH_P"]), float(params["MC_YAW_P"])])
+        p = [float(params["MC_ROLL_P"]), float(params["MC_PITCH_P"]), float(params["MC_YAW_P"])]
         if w > 1e-4:
             p[2] /= w
-        self.yaw_w, self.p = w, p
-        self.rate_limit = np.radians([float(params["MC_ROLLRATE_MAX"]), float(params["MC_PITCHRATE_MAX"]),
-                                      float(params["MC_YAWRATE_MAX"])])
+        self.yaw_w, self.p = w, tuple(p)
+        self.rate_limit = tuple(math.radians(float(params[n])) for n in
+                                ("MC_ROLLRATE_MAX", "MC_PITCHRATE_MAX", "MC_YAWRATE_MAX"))
 
-    def update(self, q, q_sp, yawspeed_sp: float = float("nan")) -> np.ndarray:
-        """Body rate set-point, rad/s, from the attitude ``q`` and its set-point ``q_sp`` (unit quaternions)."""
-        q = np.asarray(q, dtype=float)
-        qd = np.asarray(q_sp, dtype=float)
+    def update(self, q, q_sp, yawspeed_sp: float = float("nan")) -> tuple:
+        """Body rate set-point ``(p, q, r)``, rad/s, from the attitude ``q`` and its set-point ``q_sp``."""
+        q = tuple(float(v) for v in q)
+        qd = tuple(float(v) for v in q_sp)
         qd_red = _shortest_arc(_dcm_z(q), _dcm_z(qd))
         if abs(qd_red[1]) > 1 - 1e-5 or abs(qd_red[2]) > 1 - 1e-5:
             qd_red = qd
@@ -348,10 +369,11 @@ class AttitudeController:
         q_mix = _canonical(_qmul(_qinv(qd_red), qd))
         c0 = min(max(q_mix[0], -1.0), 1.0)
         c3 = min(max(q_mix[3], -1.0), 1.0)
-        qd = _qmul(qd_red, np.array([math.cos(self.yaw_w * math.acos(c0)), 0.0, 0.0,
-                                     math.sin(self.yaw_w * math.asin(c3))]))
+        qd = _qmul(qd_red, (math.cos(self.yaw_w * math.acos(c0)), 0.0, 0.0, math.sin(self.yaw_w * math.asin(c3))))
         qe = _canonical(_qmul(_qinv(q), qd))
-        rate_sp = 2.0 * qe[1:] * self.p
+        rate = [2.0 * qe[1 + i] * self.p[i] for i in range(3)]
         if math.isfinite(yawspeed_sp):
-            rate_sp = rate_sp + _dcm_z(_qinv(q)) * yawspeed_sp
-        return np.clip(rate_sp, -self.rate_limit, self.rate_limit)
+            z = _dcm_z(_qinv(q))
+            rate = [rate[i] + z[i] * yawspeed_sp for i in range(3)]
+        lim = self.rate_limit
+        return tuple(lim[i] if rate[i] > lim[i] else (-lim[i] if rate[i] < -lim[i] else rate[i]) for i in range(3))

@@ -21,8 +21,6 @@ import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
-import numpy as np
-
 from rotorlab import autopilots
 from rotorlab.errors import ConfigError
 
@@ -32,13 +30,13 @@ TORQUE_TO_PCT = 100.0
 _D2R = math.pi / 180.0
 
 
-def euler_to_quat(phi_rad: float, theta_rad: float, psi_rad: float) -> np.ndarray:
-    """Quaternion ``[w, x, y, z]`` of the yaw-pitch-roll (Z-Y-X) Euler angles, body (FRD) to world (NED)."""
+def euler_to_quat(phi_rad: float, theta_rad: float, psi_rad: float) -> tuple:
+    """Quaternion ``(w, x, y, z)`` of the yaw-pitch-roll (Z-Y-X) Euler angles, body (FRD) to world (NED)."""
     cr, sr = math.cos(phi_rad / 2), math.sin(phi_rad / 2)
     cp, sp = math.cos(theta_rad / 2), math.sin(theta_rad / 2)
     cy, sy = math.cos(psi_rad / 2), math.sin(psi_rad / 2)
-    return np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-                     cr * cp * sy - sr * sp * cy])
+    return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,6 +107,14 @@ class AutopilotController:
         The flight software's command saturations, for the integrators' saturation flags.
     rate_reference : callable, optional
         ``t -> (p, q, r)`` rate set-point, deg/s: rate mode, no attitude law.
+
+    Attributes
+    ----------
+    add_commands : bool
+        Add the commands the flight software holds at the plug-in's turn to the autopilot's output. The runner
+        sets it together with :attr:`FlightSoftware.attitude_by_plugin
+        <rotorlab.sim.control.flight_software.FlightSoftware.attitude_by_plugin>`: with the cascade off those
+        commands are the command excitation alone, which then reaches the mixer as PX4's torque injection does.
     """
 
     def __init__(self, spec: AutopilotSpec, dt_s: float, u_limit_pct: float = math.inf,
@@ -120,31 +126,38 @@ class AutopilotController:
         self.ap = autopilots.get(spec.autopilot)
         self.rate = self.ap.RateController(spec.params, self.dt)
         self.att = self.ap.AttitudeController(spec.params)
-        self.limits = np.array([u_limit_pct, u_limit_pct, yaw_u_limit_pct], dtype=float)
+        self.limits = (float(u_limit_pct), float(u_limit_pct), float(yaw_u_limit_pct))
+        self._px4 = spec.autopilot == "px4"
         self.rate_reference = rate_reference
         self.outputs = spec.outputs
+        self.add_commands = False
         self.reset()
 
     def reset(self) -> None:
         self.rate.reset()
-        self._sat_pos = np.zeros(3, dtype=bool)
-        self._sat_neg = np.zeros(3, dtype=bool)
+        self._sat_pos = (False, False, False)
+        self._sat_neg = (False, False, False)
 
     def step(self, t: float, sig: dict) -> dict:
+        # plain floats throughout: it runs every tick
         if self.rate_reference is not None:
-            rate_sp = np.asarray(self.rate_reference(t), dtype=float) * _D2R
+            rate_sp = tuple(float(v) * _D2R for v in self.rate_reference(t))
         else:
             q = euler_to_quat(sig["phi"] * _D2R, sig["theta"] * _D2R, sig["psi"] * _D2R)
             q_sp = euler_to_quat(sig["phi_ref"] * _D2R, sig["theta_ref"] * _D2R, sig["psi_ref"] * _D2R)
             rate_sp = self.att.update(q, q_sp)
-        gyro = np.array([sig["p"], sig["q"], sig["r"]]) * _D2R
-        if self.spec.autopilot == "px4":
-            torque = self.rate.step(rate_sp, gyro, sat_pos=self._sat_pos, sat_neg=self._sat_neg)
+        gyro = (sig["p"] * _D2R, sig["q"] * _D2R, sig["r"] * _D2R)
+        if self._px4:
+            tq = self.rate.step(rate_sp, gyro, sat_pos=self._sat_pos, sat_neg=self._sat_neg)
         else:
-            torque = self.rate.step(rate_sp, gyro, limit=self._sat_pos | self._sat_neg)
-        u = TORQUE_TO_PCT * torque
-        self._sat_pos = u > self.limits
-        self._sat_neg = u < -self.limits
-        r_dps = rate_sp / _D2R
-        return {"u_lat": float(u[0]), "u_lon": float(u[1]), "u_yaw": float(u[2]),
-                "p_ref": float(r_dps[0]), "q_ref": float(r_dps[1]), "r_ref": float(r_dps[2])}
+            tq = self.rate.step(rate_sp, gyro, limit=(self._sat_pos[0] or self._sat_neg[0],
+                                                      self._sat_pos[1] or self._sat_neg[1],
+                                                      self._sat_pos[2] or self._sat_neg[2]))
+        u0, u1, u2 = TORQUE_TO_PCT * tq[0], TORQUE_TO_PCT * tq[1], TORQUE_TO_PCT * tq[2]
+        if self.add_commands:
+            u0, u1, u2 = u0 + sig["u_lat"], u1 + sig["u_lon"], u2 + sig["u_yaw"]
+        lim = self.limits
+        self._sat_pos = (u0 > lim[0], u1 > lim[1], u2 > lim[2])
+        self._sat_neg = (u0 < -lim[0], u1 < -lim[1], u2 < -lim[2])
+        return {"u_lat": u0, "u_lon": u1, "u_yaw": u2,
+                "p_ref": rate_sp[0] / _D2R, "q_ref": rate_sp[1] / _D2R, "r_ref": rate_sp[2] / _D2R}

@@ -97,6 +97,14 @@ class FlightSoftware:
     n : int, optional
         Fly ``n`` simulations at once (module docstring, "Many simulations"); ``gains`` may then be a sequence of
         n GainSets. None: one simulation, signals are floats.
+
+    Attributes
+    ----------
+    attitude_by_plugin : bool
+        A plug-in sets all three attitude commands itself (an autopilot's own laws,
+        :class:`rotorlab.sim.control.autopilot.AutopilotController`): outside open-loop mode the built-in attitude
+        cascade is then not run (its commands would be overwritten), which saves its cost every tick. Set by the
+        runner when it adds such a plug-in.
     """
 
     def __init__(self, gains: GainSet, mixer: Mixer, dt: float = 0.02, mode: str = "cascade", *, limits,
@@ -147,6 +155,7 @@ class FlightSoftware:
                 raise UnknownNameError("excitation signal", name, SETPOINTS + COMMANDS)
             self.excitation[name] = sig if callable(sig) else np.asarray(sig, dtype=float).ravel().tolist()
         self.plugins = list(plugins)
+        self.attitude_by_plugin = False
         for pl in self.plugins:
             if not isinstance(pl, Plugin):
                 raise ConfigError(field="plugins", expected="objects with reset() and step(t, signals)",
@@ -301,6 +310,9 @@ class FlightSoftware:
             else:
                 u_yaw, r_ref = att.yaw.step(psi_ref, psi, r, ff_yaw)
             sig["sup_lat"], sig["sup_lon"] = sup_lat, sup_lon
+        elif self.attitude_by_plugin:
+            u_lat, u_lon, u_yaw = ff_lat, ff_lon, ff_yaw
+            p_ref = q_ref = r_ref = math.nan
         else:
             u_lat, p_ref = att.roll.step(phi_ref, phi, p, ff_lat)
             u_lon, q_ref = att.pitch.step(theta_ref, theta, q, ff_lon)
