@@ -133,3 +133,17 @@ def test_with_the_autopilot_flying_the_cascade_is_off_and_command_excitation_sti
         fs.step_signals(0.0, sig)
         runs[exc is None] = sig["u_lon"]
     assert runs[True] == 0.0 and runs[False] == pytest.approx(7.0, abs=1e-12)
+
+
+def test_open_loop_mode_adds_the_opened_axis_command_to_the_autopilot_and_runs_no_cascade():
+    v = load_vehicle("tuhh-quad")
+    spec = AutopilotSpec.from_params("px4")
+    setup = Setup(mode="open-loop", open_loop_axes=("pitch",))
+    fs = make_flight_software(v, resolve_gains(v, None), setup, 1 / 250, controller=spec)
+    fs.set_reference(u_lon=5.0)
+    meas = dict(phi=2.0, theta=1.0, psi=0.0, p=3.0, q=-2.0, r=0.0)
+    sig = dict(meas)
+    fs.step_signals(0.0, sig)
+    alone = AutopilotController(spec, 1 / 250).step(0.0, dict(meas, phi_ref=0.0, theta_ref=0.0, psi_ref=0.0))
+    assert sig["u_lat"] == pytest.approx(alone["u_lat"], rel=1e-12) and alone["u_lat"] != 0.0
+    assert sig["u_lon"] == pytest.approx(alone["u_lon"] + 5.0 + sig["sup_lon"], rel=1e-12)
