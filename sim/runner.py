@@ -220,6 +220,7 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     if aps:
         info.setdefault("controller", []).extend(
             {"name": pl.spec.name, "autopilot": pl.spec.autopilot, "dt_s": pl.dt, "outputs": list(pl.outputs),
+             "loop_hz": 1.0 / pl.dt, "params_loop_hz": pl.ap.loop_hz(pl.spec.params),
              "params": dict(pl.spec.params), "defaulted": list(pl.spec.defaulted)} for pl in aps)
     metrics_fn = getattr(mod, "metrics", None)
     info["metrics"] = metrics_fn(log, ctx, setup) if metrics_fn else {}

@@ -89,7 +89,8 @@ def test_run_scenario_flies_an_autopilot_and_records_its_parameters():
     c = res.info["controller"][0]
     assert c["name"] == "ardupilot:tuned.parm" and c["params"]["ATC_RAT_PIT_P"] == 0.1
     assert "ATC_RAT_PIT_P" not in c["defaulted"] and "ATC_RAT_RLL_P" in c["defaulted"]
-    assert c["dt_s"] == pytest.approx(1 / 250)
+    assert c["dt_s"] == pytest.approx(1 / 250) and c["loop_hz"] == pytest.approx(250.0)
+    assert c["params_loop_hz"] == 400.0  # SCHED_LOOP_RATE's default: the twin flies at its own rate, and says so
 
 
 def test_controller_values_parse_to_autopilots(tmp_path):
