@@ -10,9 +10,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from rotorlab import atomic
+from rotorlab import atomic, autopilots
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import GainSet, load_gains
+from rotorlab.scenes import PHYSICS_DT_S
 from rotorlab.sim import scenarios
 from rotorlab.sim.control.autopilot import AutopilotController, AutopilotSpec
 from rotorlab.sim.control.flight_software import FlightSoftware
@@ -114,6 +115,25 @@ def controller_plugins(controller, fs: FlightSoftware) -> list:
     return out
 
 
+def autopilot_dt_s(controller, vehicle_dt_s: float, physics_dt_s: float) -> float:
+    """The flight-software period of a run: the loop period of an autopilot's parameters when they set it
+    (IMU_GYRO_RATEMAX, SCHED_LOOP_RATE) and it is a whole number of physics steps, else the vehicle's. A loop rate
+    left at its default does not count (PX4's and ArduPilot's 400 Hz is 2.5 steps of 1 ms); run.json records the
+    rate flown and the parameters' rate."""
+    specs = controller if isinstance(controller, (list, tuple)) else [controller]
+    for spec in specs:
+        if isinstance(spec, AutopilotSpec):
+            ap = autopilots.get(spec.autopilot)
+            name = ap.LOOP_RATE_PARAM
+            if name in spec.defaulted:
+                continue
+            dt = 1.0 / ap.loop_hz(spec.params)
+            n = dt / physics_dt_s
+            if abs(n - round(n)) < 1e-9 and round(n) >= 1:
+                return dt
+    return vehicle_dt_s
+
+
 INTERRUPTED = "interrupted (Ctrl-C)"
 # Memory a run holds per control tick: the log's row (at most this many float64 columns) and, with
 # record_poses, every body pose, rotor thrust and tendon path (a few KiB for the shipped scenes). Checked
@@ -163,7 +183,8 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
 
     ``controller``: discrete controllers flown in place of the cascade on the commands they set (a
     :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a ``.json``/``.toml`` controller file, or a list of
-    them); the flight software runs at the vehicle's rate (``VehicleSpec.control_dt_s``).
+    them); the flight software runs at the vehicle's rate (``VehicleSpec.control_dt_s``), or at the loop rate of an
+    autopilot's parameters (:func:`autopilot_dt_s`).
 
     A run that diverges (NaN, MuJoCo warning, rig stop, crash) stops early, keeps the log written so far and
     records the reason in ``run.json`` under ``stopped``. ``record_poses`` keeps the body poses, rotor thrusts,
@@ -176,15 +197,17 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     mod, scene = scenarios.get_with_scene(name, scene)
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
     duration_s = float(duration_s if duration_s is not None else mod.DURATION_S)
-    n_ticks = check_duration(duration_s, v.control_dt_s, record_poses)
+    control_dt_s = autopilot_dt_s(controller, v.control_dt_s, PHYSICS_DT_S)
+    n_ticks = check_duration(duration_s, control_dt_s, record_poses)
     if out is not None:  # before the simulation: a read-only folder must not cost the run
         atomic.check_writable_dir(out, "run folder")
     gs = resolve_gains(v, gains)
     ctx = scenarios.Context(vehicle=v, scene=scene, gains=gs, seed=seed, duration_s=duration_s,
-                            options=dict(options or {}), dt_s=v.control_dt_s)
+                            options=dict(options or {}), dt_s=control_dt_s)
     setup = mod.setup(ctx)
     noise = setup.sensor_noise if sensor_noise is None else sensor_noise
-    sim = Simulator(scene, v, seed=seed, sensor_noise=noise, disturbances=setup.disturbances)
+    sim = Simulator(scene, v, seed=seed, sensor_noise=noise, disturbances=setup.disturbances,
+                    control_dt_s=control_dt_s)
     fs = make_flight_software(v, gs, setup, sim.control_dt_s, controller if controller is not None else
                               (setup.controller or None))
     columns = {} if setup.drive is not None else dict(BASE_COLUMNS)

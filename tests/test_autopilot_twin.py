@@ -148,3 +148,19 @@ def test_open_loop_mode_adds_the_opened_axis_command_to_the_autopilot_and_runs_n
     alone = AutopilotController(spec, 1 / 250).step(0.0, dict(meas, phi_ref=0.0, theta_ref=0.0, psi_ref=0.0))
     assert sig["u_lat"] == pytest.approx(alone["u_lat"], rel=1e-12) and alone["u_lat"] != 0.0
     assert sig["u_lon"] == pytest.approx(alone["u_lon"] + 5.0 + sig["sup_lon"], rel=1e-12)
+
+
+def test_the_twin_flies_the_parameters_loop_rate_when_it_is_a_whole_number_of_physics_steps(tmp_path):
+    path = tmp_path / "fast.params"
+    autopilots.write_params("px4", path, {"IMU_GYRO_RATEMAX": 1000}, "1 kHz rate loop")
+    res = run_scenario("setpoint", "tuhh-quad", scene="pitch-rig", controller=parse_autopilot(f"px4:{path}"),
+                       duration_s=2.0)
+    c = res.info["controller"][0]
+    assert res.info["control_dt_s"] == pytest.approx(0.001) and c["loop_hz"] == pytest.approx(1000.0)
+    assert res.stopped is None and res.log.n == 2000  # 2 s of 1 ms ticks
+    # 400 Hz is 2.5 physics steps: the vehicle's 250 Hz is flown, and run.json says both
+    autopilots.write_params("px4", path, {"IMU_GYRO_RATEMAX": 400}, "400 Hz")
+    res = run_scenario("setpoint", "tuhh-quad", scene="pitch-rig", controller=parse_autopilot(f"px4:{path}"),
+                       duration_s=1.0)
+    c = res.info["controller"][0]
+    assert c["loop_hz"] == pytest.approx(250.0) and c["params_loop_hz"] == 400.0

@@ -42,12 +42,13 @@ import numpy as np
 from rotorlab.autopilots import filters
 from rotorlab.autopilots.params import ParamSpec, ParamTable
 
-__all__ = ["NAME", "FILE_FORMAT", "AXES", "TABLE", "axis_names", "RateController", "AttitudeController",
-           "rate_controller_lti", "attitude_controller_lti", "loop_hz"]
+__all__ = ["NAME", "FILE_FORMAT", "AXES", "LOOP_RATE_PARAM", "TABLE", "axis_names", "RateController",
+           "AttitudeController", "rate_controller_lti", "attitude_controller_lti", "loop_hz"]
 
 NAME = "ardupilot"
 FILE_FORMAT = "parm"  # Mission Planner .parm
 AXES = ("roll", "pitch", "yaw")
+LOOP_RATE_PARAM = "SCHED_LOOP_RATE"  # the rate-loop rate, Hz
 
 _MULTI = "ArduCopter 4.x AC_AttitudeControl_Multi.cpp/.h"
 _ATT = "ArduCopter 4.x AC_AttitudeControl.cpp/.h"
@@ -110,7 +111,7 @@ TABLE = ParamTable(NAME, [
 
 def loop_hz(params: Mapping[str, float]) -> float:
     """The rate loop's rate, Hz (SCHED_LOOP_RATE, default 400)."""
-    return float(params.get("SCHED_LOOP_RATE", TABLE["SCHED_LOOP_RATE"].default))
+    return float(params.get(LOOP_RATE_PARAM, TABLE[LOOP_RATE_PARAM].default))
 
 
 def _gains(params, axis):

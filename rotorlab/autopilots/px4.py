@@ -40,12 +40,13 @@ import control as ct
 from rotorlab.autopilots import filters
 from rotorlab.autopilots.params import ParamSpec, ParamTable
 
-__all__ = ["NAME", "FILE_FORMAT", "AXES", "TABLE", "axis_names", "RateController", "AttitudeController",
-           "rate_controller_lti", "attitude_controller_lti", "loop_hz"]
+__all__ = ["NAME", "FILE_FORMAT", "AXES", "LOOP_RATE_PARAM", "TABLE", "axis_names", "RateController",
+           "AttitudeController", "rate_controller_lti", "attitude_controller_lti", "loop_hz"]
 
 NAME = "px4"
 FILE_FORMAT = "qgc"  # QGroundControl .params
 AXES = ("roll", "pitch", "yaw")
+LOOP_RATE_PARAM = "IMU_GYRO_RATEMAX"  # the rate-loop rate, Hz
 
 _RC = "PX4 mc_rate_control_params.yaml @e87d6afa"
 _AC = "PX4 mc_att_control_params.yaml @e87d6afa"
@@ -117,7 +118,7 @@ def _axis(axis: str) -> str:
 
 def loop_hz(params: Mapping[str, float]) -> float:
     """The rate loop's rate, Hz (IMU_GYRO_RATEMAX, default 400)."""
-    return float(params.get("IMU_GYRO_RATEMAX", TABLE["IMU_GYRO_RATEMAX"].default))
+    return float(params.get(LOOP_RATE_PARAM, TABLE[LOOP_RATE_PARAM].default))
 
 
 def _gains(params, axis):
