@@ -356,3 +356,25 @@ def test_a_controller_from_a_log_missing_a_parameter_is_refused():
         px4.TABLE.complete(log_params, source="FLIGHT.ulg")
     full = px4.TABLE.complete(log_params, fill_defaults=True)
     assert full["MC_ROLLRATE_P"] == 0.2 and full["MC_ROLLRATE_I"] == px4.TABLE["MC_ROLLRATE_I"].default
+
+
+@pytest.mark.parametrize("name", sorted(autopilots.AUTOPILOTS))
+@pytest.mark.parametrize("axis", ["roll", "yaw"])
+def test_fixed_structure_lti_is_affine_in_the_gains_and_equals_the_minimal_form(name, axis):
+    ap = autopilots.get(name)
+    n = ap.axis_names(axis)
+    base = ap.TABLE.defaults()
+    if name == "px4":
+        base["IMU_DGYRO_CUTOFF"] = 30.0
+    else:
+        base[n["FLTD"]] = 15.0
+    g1 = dict(base, **{n["P"]: 0.1, n["I"]: 0.0, n["D"]: 0.0, n["FF"]: 0.0})
+    g2 = dict(base, **{n["P"]: 0.3, n["I"]: 0.4, n["D"]: 0.004, n["FF"]: 0.2})
+    mid = {k: 0.5 * (g1[k] + g2[k]) for k in g1}
+    S1, S2, Sm = (ap.rate_controller_lti(g, axis, DT, fixed_structure=True) for g in (g1, g2, mid))
+    assert S1.nstates == S2.nstates == Sm.nstates
+    for M in ("A", "B", "C", "D"):
+        np.testing.assert_allclose(getattr(Sm, M), 0.5 * (getattr(S1, M) + getattr(S2, M)), rtol=0, atol=1e-12)
+    # the kept states of a zero gain change nothing in the response
+    u = np.random.default_rng(5).standard_normal((200, 2))
+    np.testing.assert_allclose(_lsim(S1, u), _lsim(ap.rate_controller_lti(g1, axis, DT), u), atol=1e-12)

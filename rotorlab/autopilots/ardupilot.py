@@ -120,13 +120,15 @@ def _gains(params, axis):
 
 
 def rate_controller_lti(params: Mapping[str, float], axis: str, dt_s: float,
-                        gyro_filter: bool = True) -> ct.StateSpace:
+                        gyro_filter: bool = True, fixed_structure: bool = False) -> ct.StateSpace:
     """ArduPilot's AC_PID rate law of one axis (plus feed-forward) as a discrete LTI system at ``dt_s``.
 
     Inputs ``["rate_sp", "rate"]`` (rad/s), output ``["torque"]`` (normalised roll/pitch/yaw command). ``rate`` is
     the raw gyro when ``gyro_filter`` (INS_GYRO_FILTER is part of the system), or the already filtered gyro
     (ArduPilot's logged RATE.R/P/Y) with ``gyro_filter=False``. Zero initial state is AC_PID after a reset fed
-    zeros first; valid below IMAX and output saturation; equals :class:`RateController` there.
+    zeros first; valid below IMAX and output saturation; equals :class:`RateController` there. With
+    ``fixed_structure`` the I and D paths keep their states at zero gain: the matrices are then affine in
+    ``(P, I, D, FF)`` for fixed filter cutoffs (the form a structured tuner varies).
 
     Examples
     --------
@@ -148,10 +150,10 @@ def rate_controller_lti(params: Mapping[str, float], axis: str, dt_s: float,
     # [t, e] -> u
     sel_e = ct.ss([], [], [], [[0.0, 1.0]], dt_s)
     core = ct.ss([], [], [], [[ff, kp]], dt_s)
-    if ki:
+    if ki or fixed_structure:
         # i[k] = i[k-1] + ki dt e[k]: ki dt z / (z - 1)
         core = ct.parallel(core, ct.series(sel_e, ct.ss([[1.0]], [[ki * dt_s]], [[1.0]], [[ki * dt_s]], dt_s)))
-    if kd:
+    if kd or fixed_structure:
         # d = Dlpf((e[k] - e[k-1]) / dt); state e[k-1]
         diff = ct.ss([[0.0]], [[1.0]], [[-1.0 / dt_s]], [[1.0 / dt_s]], dt_s)
         core = ct.parallel(core, ct.series(sel_e, diff, filters.alpha_ss(dt_s, f_d), ct.ss([], [], [], [[kd]], dt_s)))

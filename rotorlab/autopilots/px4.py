@@ -129,13 +129,17 @@ def _gains(params, axis):
 
 
 def rate_controller_lti(params: Mapping[str, float], axis: str, dt_s: float,
-                        gyro_filter: bool = True) -> ct.StateSpace:
+                        gyro_filter: bool = True, fixed_structure: bool = False) -> ct.StateSpace:
     """PX4's rate law of one axis as a discrete LTI system at the loop period ``dt_s``.
 
     Inputs ``["rate_sp", "rate"]`` (rad/s), output ``["torque"]`` (normalised). ``rate`` is the raw gyro when
     ``gyro_filter`` (the IMU_GYRO_CUTOFF filter is part of the system), or a rate that has already been through it
     (``gyro_filter=False``, e.g. PX4's logged ``vehicle_angular_velocity``). Valid below saturation and with the
-    integrator inside its limit; equals :class:`RateController` there (``i_factor`` = 1).
+    integrator inside its limit; equals :class:`RateController` there (``i_factor`` = 1). With
+    ``fixed_structure`` the I and D paths keep their states at zero gain, so the realisation depends on the
+    filter parameters only and its matrices are affine in ``(K P, K I, K D, FF)``: the form a structured tuner
+    varies (the default drops the states of a zero gain, which would otherwise leave an unobservable pole at
+    ``z = 1`` for ``I = 0``).
 
     Parameters
     ----------
@@ -160,10 +164,10 @@ def rate_controller_lti(params: Mapping[str, float], axis: str, dt_s: float,
     # [r, y] -> [r, w]
     pre = ct.append(ct.ss([], [], [], [[1.0]], dt_s), G)
     parts = [ct.ss([], [], [], [[kp + ff, -kp]], dt_s)]
-    if ki:
+    if ki or fixed_structure:
         # i[k+1] = i[k] + ki dt e[k], output i[k]: ki dt / (z - 1) on e = r - w
         parts.append(ct.ss([[1.0]], [[ki * dt_s, -ki * dt_s]], [[1.0]], [[0.0, 0.0]], dt_s))
-    if kd:
+    if kd or fixed_structure:
         # a = Dlpf((w[k] - w[k-1]) / dt); state: w[k-1]
         diff = ct.ss([[0.0]], [[1.0]], [[-1.0 / dt_s]], [[1.0 / dt_s]], dt_s)
         Dl = filters.butter2_ss(fs, float(params["IMU_DGYRO_CUTOFF"]))
