@@ -378,3 +378,36 @@ def test_fixed_structure_lti_is_affine_in_the_gains_and_equals_the_minimal_form(
     # the kept states of a zero gain change nothing in the response
     u = np.random.default_rng(5).standard_normal((200, 2))
     np.testing.assert_allclose(_lsim(S1, u), _lsim(ap.rate_controller_lti(g1, axis, DT), u), atol=1e-12)
+
+
+# ---------------------------------------------------------------- PX4 autotune's rule
+
+def test_px4_gmvc_rule_reproduces_px4s_own_unit_test():
+    """src/lib/pid_design/pid_design_test.cpp: kc 0.129, ki 11.911 / 5, kd 0.0463 (tolerances as PX4's)."""
+    from rotorlab.autopilots import px4_autotune
+
+    kc, ki, kd = px4_autotune.gmvc_pid((0.0098, -0.162, 0.147), (1.0, -1.814, 0.822), 0.004, 0.1, 1.0, 0.5)
+    assert abs(kc - 0.129) < 0.001 and abs(ki - 11.911 / 5) < 0.001 and abs(kd - 0.0463) < 0.0001
+    assert px4_autotune.gmvc_pid((0.0, 0.0, 0.0), (1.0, -1.5, 0.7), 0.01, 0.1, 1.0, 0.0) == (0.0, 0.0, 0.0)
+
+
+def test_px4_autotune_from_a_fitted_arx_model_by_hand():
+    from rotorlab.autopilots import px4_autotune
+
+    num, den, dt = np.array([0.02, 0.01, 0.0]), np.array([1.0, -1.6, 0.64]), 0.005
+    rng = np.random.default_rng(11)
+    u = np.sign(np.sin(np.arange(4000) * dt * 2 * np.pi * 1.3)) + 0.3 * rng.standard_normal(4000)
+    y = sig.lfilter(np.r_[0.0, num], den, u)  # A(q^-1) y = q^-1 B(q^-1) u
+    got_num, got_den = px4_autotune.arx221_fit(u, y)
+    np.testing.assert_allclose(got_num, num, atol=1e-10)
+    np.testing.assert_allclose(got_den, den, atol=1e-10)
+    gains = px4_autotune.autotune_gains({"pitch": (num, den)}, dt)
+    kc, ki, kd = px4_autotune.gmvc_pid(num, den, dt, 0.14, 0.0, 0.7)
+    assert gains == pytest.approx({"MC_PITCHRATE_P": kc, "MC_PITCHRATE_K": 1.0, "MC_PITCHRATE_I": kc * ki,
+                                   "MC_PITCHRATE_D": kc * kd,
+                                   "MC_PITCH_P": min(max(1 / (math.radians(60) * kc), 2.0), 6.5)}, rel=1e-12)
+    px4.TABLE.check(gains)  # what autotune saves is in the documented ranges
+    with pytest.raises(DataError, match="PX4 autotune would reject the pitch gains"):
+        px4_autotune.autotune_gains({"pitch": (-100 * num, den)}, dt)  # a reversed input gives kc < 0
+    with pytest.raises(DataError, match="excite"):
+        px4_autotune.arx221_fit(np.zeros(100), np.zeros(100))
