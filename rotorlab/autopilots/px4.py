@@ -308,7 +308,7 @@ def _canonical(q):
     # the one of q, -q whose first non-zero component is positive (PX4 Quaternion::canonical)
     for c in q:
         if c != 0.0:
-            return q if c > 0 else tuple(-v for v in q)
+            return q if c > 0 else (-q[0], -q[1], -q[2], -q[3])
     return q
 
 
@@ -327,11 +327,11 @@ def _shortest_arc(src, dst, eps=1e-5):
     if math.sqrt(cx * cx + cy * cy + cz * cz) < eps and d < 0:
         # opposite directions: a half turn about an axis normal to src
         ox, oy, oz = (1.0, 0.0, 0.0) if abs(sx) < 0.9 else (0.0, 1.0, 0.0)
-        q = (0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox)
+        w, x, y, z = 0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox
     else:
-        q = (d + math.sqrt((sx * sx + sy * sy + sz * sz) * (dx * dx + dy * dy + dz * dz)), cx, cy, cz)
-    n = math.sqrt(sum(v * v for v in q))
-    return tuple(v / n for v in q)
+        w, x, y, z = d + math.sqrt((sx * sx + sy * sy + sz * sz) * (dx * dx + dy * dy + dz * dz)), cx, cy, cz
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    return (w / n, x / n, y / n, z / n)
 
 
 class AttitudeController:
@@ -364,8 +364,9 @@ class AttitudeController:
 
     def update(self, q, q_sp, yawspeed_sp: float = float("nan")) -> tuple:
         """Body rate set-point ``(p, q, r)``, rad/s, from the attitude ``q`` and its set-point ``q_sp``."""
-        q = tuple(float(v) for v in q)
-        qd = tuple(float(v) for v in q_sp)
+        # written out in floats (it runs every tick), in PX4's order of operations
+        q = tuple(q)
+        qd = tuple(q_sp)
         qd_red = _shortest_arc(_dcm_z(q), _dcm_z(qd))
         if abs(qd_red[1]) > 1 - 1e-5 or abs(qd_red[2]) > 1 - 1e-5:
             qd_red = qd
@@ -374,11 +375,14 @@ class AttitudeController:
         q_mix = _canonical(_qmul(_qinv(qd_red), qd))
         c0 = min(max(q_mix[0], -1.0), 1.0)
         c3 = min(max(q_mix[3], -1.0), 1.0)
-        qd = _qmul(qd_red, (math.cos(self.yaw_w * math.acos(c0)), 0.0, 0.0, math.sin(self.yaw_w * math.asin(c3))))
+        w = self.yaw_w
+        qd = _qmul(qd_red, (math.cos(w * math.acos(c0)), 0.0, 0.0, math.sin(w * math.asin(c3))))
         qe = _canonical(_qmul(_qinv(q), qd))
-        rate = [2.0 * qe[1 + i] * self.p[i] for i in range(3)]
-        if math.isfinite(yawspeed_sp):
-            z = _dcm_z(_qinv(q))
-            rate = [rate[i] + z[i] * yawspeed_sp for i in range(3)]
-        lim = self.rate_limit
-        return tuple(lim[i] if rate[i] > lim[i] else (-lim[i] if rate[i] < -lim[i] else rate[i]) for i in range(3))
+        p0, p1, p2 = self.p
+        r0, r1, r2 = 2.0 * qe[1] * p0, 2.0 * qe[2] * p1, 2.0 * qe[3] * p2
+        if yawspeed_sp == yawspeed_sp and abs(yawspeed_sp) != math.inf:
+            z0, z1, z2 = _dcm_z(_qinv(q))
+            r0, r1, r2 = r0 + z0 * yawspeed_sp, r1 + z1 * yawspeed_sp, r2 + z2 * yawspeed_sp
+        l0, l1, l2 = self.rate_limit
+        return (l0 if r0 > l0 else (-l0 if r0 < -l0 else r0), l1 if r1 > l1 else (-l1 if r1 < -l1 else r1),
+                l2 if r2 > l2 else (-l2 if r2 < -l2 else r2))
