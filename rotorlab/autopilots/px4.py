@@ -26,8 +26,8 @@ nominally [-1, 1]); the allocator, here the vehicle's mixer, saturates it.
 
 Below saturation and for ``|e|`` small against 400 deg/s (``f = 1 - 6e-6`` at 1 deg/s of error), the law is the
 LTI system :func:`rate_controller_lti`. PX4 filters the gyro at the sensor's raw rate (often 1-8 kHz) and runs
-the controller at IMU_GYRO_RATEMAX; here both run at the loop rate, which moves the filters' poles by well under
-a percent for cutoffs below a tenth of the loop rate.
+the controller at IMU_GYRO_RATEMAX; here both run at the loop rate. For the default 40 Hz gyro filter the two
+differ by under 0.3 % in gain and 1.2 deg in phase up to 20 Hz (400 Hz against 8 kHz).
 """
 
 from __future__ import annotations

@@ -42,7 +42,14 @@ def euler_to_quat(phi_rad: float, theta_rad: float, psi_rad: float) -> tuple:
 @dataclasses.dataclass(frozen=True)
 class AutopilotSpec:
     """An autopilot law to fly: ``autopilot`` (a name in :data:`rotorlab.autopilots.AUTOPILOTS`), its complete
-    parameter set in the autopilot's names and units, and where the parameters came from."""
+    parameter set in the autopilot's names and units, and where the parameters came from.
+
+    Examples
+    --------
+    >>> spec = AutopilotSpec.from_params("ardupilot", {"ATC_RAT_PIT_P": 0.1}, source="tuned.parm")
+    >>> spec.name, spec.params["ATC_RAT_PIT_P"], "ATC_RAT_PIT_P" in spec.defaulted
+    ('ardupilot:tuned.parm', 0.1, False)
+    """
 
     autopilot: str
     params: Mapping[str, float]
@@ -107,6 +114,13 @@ class AutopilotController:
         The flight software's command saturations, for the integrators' saturation flags.
     rate_reference : callable, optional
         ``t -> (p, q, r)`` rate set-point, deg/s: rate mode, no attitude law.
+
+    Examples
+    --------
+    >>> ctl = AutopilotController(AutopilotSpec.from_params("px4"), 1 / 250)
+    >>> sig = dict(phi=0.0, theta=0.0, psi=0.0, phi_ref=1.0, theta_ref=0.0, psi_ref=0.0, p=0.0, q=0.0, r=0.0)
+    >>> round(ctl.step(0.0, sig)["p_ref"], 3)  # 1 deg of roll error at MC_ROLL_P = 4: 4 deg/s
+    4.0
 
     Attributes
     ----------
