@@ -82,12 +82,18 @@ def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: fl
         excitation=setup.excitation or None, altitude_hold=setup.altitude_hold, n=n,
     )
     if controller is not None:
-        plugins = controller_plugins(controller, fs)
-        fs.plugins.extend(plugins)
-        for pl in plugins:
-            if isinstance(pl, AutopilotController):
-                fs.attitude_by_plugin = pl.add_commands = True
+        add_controllers(fs, controller)
     return fs
+
+
+def add_controllers(fs: FlightSoftware, controller) -> None:
+    """Fly ``controller`` (:func:`controller_plugins`) in ``fs``; an autopilot's laws replace the built-in cascade
+    (:attr:`FlightSoftware.attitude_by_plugin`), the command excitation added to their output."""
+    plugins = controller_plugins(controller, fs)
+    fs.plugins.extend(plugins)
+    for pl in plugins:
+        if isinstance(pl, AutopilotController):
+            fs.attitude_by_plugin = pl.add_commands = True
 
 
 def controller_plugins(controller, fs: FlightSoftware) -> list:
@@ -315,4 +321,4 @@ def _gain_dict(gs: GainSet | None) -> dict | None:
 
 
 __all__ = ["RunResult", "run_scenario", "check_duration", "INTERRUPTED", "resolve_gains", "make_flight_software",
-           "controller_plugins", "BASE_COLUMNS"]
+           "controller_plugins", "add_controllers", "BASE_COLUMNS"]

@@ -164,3 +164,16 @@ def test_the_twin_flies_the_parameters_loop_rate_when_it_is_a_whole_number_of_ph
                        duration_s=1.0)
     c = res.info["controller"][0]
     assert c["loop_hz"] == pytest.approx(250.0) and c["params_loop_hz"] == 400.0
+
+
+def test_the_hover_env_flies_an_autopilot_in_place_of_the_cascade():
+    from rotorlab.sim.env_hover import HoverEnv
+
+    env = HoverEnv("tuhh-quad", control="attitude", controller=resolve_controller("ardupilot:defaults", None))
+    assert env._fs.attitude_by_plugin
+    env.reset(seed=0)
+    hover = env.normalize_action([env.vehicle.hover_collective_pct, 2.0, 0.0, 0.0])  # 2 deg of roll asked for
+    for _ in range(125):
+        obs, *_ = env.step(hover)
+    assert 1.5 < obs[0] < 2.5  # roll (deg) after 0.5 s at 250 Hz: ArduPilot's angle P and rate PID hold it
+    env.close()
