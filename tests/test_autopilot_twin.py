@@ -177,3 +177,23 @@ def test_the_hover_env_flies_an_autopilot_in_place_of_the_cascade():
         obs, *_ = env.step(hover)
     assert 1.5 < obs[0] < 2.5  # roll (deg) after 0.5 s at 250 Hz: ArduPilot's angle P and rate PID hold it
     env.close()
+
+
+def test_cli_flies_an_autopilot_and_refuses_bad_parameter_files(tmp_path, capsys):
+    from rotorlab.cli import main
+
+    parm = tmp_path / "tuned.parm"
+    autopilots.write_params("ardupilot", parm, {"ATC_RAT_PIT_P": 0.12}, "tuned: pitch rate P")
+    out = tmp_path / "run"
+    assert main(["run", "setpoint", "--vehicle", "tuhh-quad", "--controller", f"ardupilot:{parm}", "--duration", "3",
+                 "--out", str(out), "--json"]) == 0
+    assert (out / "run.json").exists()
+    capsys.readouterr()
+    assert main(["run", "setpoint", "--vehicle", "tuhh-quad", "--controller", f"px4:{tmp_path / 'no.params'}",
+                 "--duration", "3", "--out", str(tmp_path / "r2")]) == 2
+    assert "parameter file not found" in capsys.readouterr().err
+    parm.write_text("ATC_RAT_PIT_P,zero\n")
+    assert main(["run", "setpoint", "--vehicle", "tuhh-quad", "--controller", f"ardupilot:{parm}", "--duration", "3",
+                 "--out", str(tmp_path / "r3")]) == 2
+    err = capsys.readouterr().err
+    assert "line 1: not a number" in err and "ATC_RAT_PIT_P" in err and "Traceback" not in err
