@@ -310,6 +310,12 @@ def test_qgc_params_file_as_qgroundcontrol_writes_it(tmp_path):
                     "1\t1\tIMU_GYRO_RATEMAX\t400\t6\n1\t1\tMC_ROLLRATE_P\t0.150000005960464478\t9\n")
     got = autopilots.read_params(path)
     assert got == {"IMU_GYRO_RATEMAX": 400.0, "MC_ROLLRATE_P": 0.150000005960464478}
+    other = tmp_path / "two_components.params"
+    other.write_text(path.read_text() + "1\t154\tMC_ROLLRATE_P\t0.3\t9\n")
+    assert autopilots.read_params(other)["MC_ROLLRATE_P"] == 0.150000005960464478  # the autopilot's, listed first
+    other.write_text(path.read_text() + "1\t1\tMC_ROLLRATE_P\t0.3\t9\n")
+    with pytest.raises(ConfigError, match="line 7: given twice"):
+        autopilots.read_params(other)
     assert "\tIMU_GYRO_RATEMAX\t400\t6\n" in (autopilots.write_params("px4", tmp_path / "o.params", got, "x")
                                               .read_text())
 

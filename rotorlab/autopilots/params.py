@@ -188,7 +188,9 @@ def read_qgc_params(path) -> dict[str, float]:
     Raises
     ------
     rotorlab.errors.ConfigError
-        A row without 5 tab/space-separated fields, a bad name or value, a name given twice.
+        A row without 5 tab/space-separated fields, a bad name or value, a name given twice for one component
+        (a name another component also has keeps the value of the component listed first, the autopilot in
+        QGroundControl's files).
 
     Examples
     --------
@@ -199,6 +201,7 @@ def read_qgc_params(path) -> dict[str, float]:
     {'MC_ROLLRATE_P': 0.2}
     """
     out: dict[str, float] = {}
+    component: dict[str, str] = {}
     for lineno, line in _lines(path):
         fields = line.split()
         if len(fields) != 5:
@@ -206,10 +209,13 @@ def read_qgc_params(path) -> dict[str, float]:
                               expected="'vehicle-id component-id name value type'", got=line)
         name = fields[2]
         _check_name(name, path, lineno)
+        value = _number(fields[3], path, lineno, name)
         if name in out:
-            raise ConfigError(f"line {lineno}: given twice", file=path, field=name, expected="one row per name",
-                              got=name)
-        out[name] = _number(fields[3], path, lineno, name)
+            if component[name] == fields[1]:
+                raise ConfigError(f"line {lineno}: given twice", file=path, field=name,
+                                  expected="one row per name and component", got=name)
+            continue  # another component's parameter of that name (a gimbal, a camera): the first component's counts
+        out[name], component[name] = value, fields[1]
     return out
 
 
