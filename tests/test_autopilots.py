@@ -314,7 +314,7 @@ def test_qgc_params_file_as_qgroundcontrol_writes_it(tmp_path):
     other.write_text(path.read_text() + "1\t154\tMC_ROLLRATE_P\t0.3\t9\n")
     assert autopilots.read_params(other)["MC_ROLLRATE_P"] == 0.150000005960464478  # the autopilot's, listed first
     other.write_text(path.read_text() + "1\t1\tMC_ROLLRATE_P\t0.3\t9\n")
-    with pytest.raises(ConfigError, match="line 7: given twice"):
+    with pytest.raises(ConfigError, match="line 8: given twice"):
         autopilots.read_params(other)
     assert "\tIMU_GYRO_RATEMAX\t400\t6\n" in (autopilots.write_params("px4", tmp_path / "o.params", got, "x")
                                               .read_text())
