@@ -24,6 +24,7 @@ import numpy as np
 
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.lti import as_ss, c2d_zoh_delay
+from rotorlab.sim.control.autopilot import parse_autopilot
 from rotorlab.sim.control.statespace import AntiWindup, ControllerSpec, load_controller
 from rotorlab.tune import riccati_antiwindup
 from rotorlab.tune.loopshaping import TUHH_AXES, hinf_mixed_sensitivity, tuhh_axis_plant
@@ -118,13 +119,18 @@ def _build(name: str, axis: str, dt: float):
 
 
 def resolve_controller(value, vehicle):
-    """``--controller`` value: a design name (both attitude axes) or a controller file path."""
+    """``--controller`` value: a design name (both attitude axes), ``AUTOPILOT:PARAMS`` (an autopilot's own laws,
+    :func:`rotorlab.sim.control.autopilot.parse_autopilot`) or a controller file path."""
     if value in DESIGNS:
         return design(value, vehicle)
+    ap = parse_autopilot(value)
+    if ap is not None:
+        return ap
     p = Path(str(value))
     if p.suffix in (".json", ".toml"):
         return load_controller(p)
-    raise UnknownNameError("controller (a design name or a .json/.toml file)", str(value), DESIGNS)
+    raise UnknownNameError("controller (a design name, px4:PARAMS, ardupilot:PARAMS or a .json/.toml file)",
+                           str(value), DESIGNS)
 
 
 __all__ = ["DESIGNS", "MODIFIED_PID", "AXIS_SIGNALS", "list_designs", "design", "resolve_controller"]

@@ -15,7 +15,8 @@ Actions (float32 Box(-1, 1), shape (4,)), scaled to physical units (``info['acti
     ``a * max_tilt_deg`` and ``a * 180`` deg; the vehicle's attitude cascade (:class:`FlightSoftware`, its
     ``gains``) closes the attitude loops, or the discrete controllers given as ``controller=`` (a
     :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a controller file or a list; e.g.
-    ``rotorlab.designs.design('hinf-loopshaping', 'tuhh-quad')``) in its place on the commands they set.
+    ``rotorlab.designs.design('hinf-loopshaping', 'tuhh-quad')``; or an autopilot's own laws,
+    ``rotorlab.designs.resolve_controller('px4:defaults', None)``) in its place on the commands they set.
 
 Out-of-range actions are clipped component-wise to [-1, 1] (``info['action_clipped']``); non-finite actions
 raise ``ValueError`` and leave the episode untouched.
@@ -43,7 +44,7 @@ from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.scenes import HOVER_HEIGHT_M
 from rotorlab.sim.control.flight_software import FlightSoftware
 from rotorlab.sim.env_base import RotorlabEnv, box, clip_obs
-from rotorlab.sim.runner import controller_plugins, resolve_gains
+from rotorlab.sim.runner import add_controllers, resolve_gains
 from rotorlab.sim.simulator import vehicle_mixer
 
 CONTROLS = ("commands", "attitude")
@@ -99,7 +100,7 @@ class HoverEnv(RotorlabEnv):
         self._fs = FlightSoftware(self.gains, vehicle_mixer(v), dt=self.control_dt_s, mode="cascade",
                                   limits=v.commands)
         if controller is not None:
-            self._fs.plugins.extend(controller_plugins(controller, self._fs))
+            add_controllers(self._fs, controller)
         self._target = np.array([0.0, 0.0, -HOVER_HEIGHT_M])
         self._u = np.zeros(4)
 

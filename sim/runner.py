@@ -10,10 +10,12 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from rotorlab import atomic
+from rotorlab import atomic, autopilots
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.gains import GainSet, load_gains
+from rotorlab.scenes import PHYSICS_DT_S
 from rotorlab.sim import scenarios
+from rotorlab.sim.control.autopilot import AutopilotController, AutopilotSpec
 from rotorlab.sim.control.flight_software import FlightSoftware
 from rotorlab.sim.control.position import PositionGains
 from rotorlab.sim.control.statespace import StateSpaceController, as_controller_spec
@@ -80,26 +82,62 @@ def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: fl
         excitation=setup.excitation or None, altitude_hold=setup.altitude_hold, n=n,
     )
     if controller is not None:
-        fs.plugins.extend(controller_plugins(controller, fs))
+        add_controllers(fs, controller)
     return fs
+
+
+def add_controllers(fs: FlightSoftware, controller) -> None:
+    """Fly ``controller`` (:func:`controller_plugins`) in ``fs``; an autopilot's laws replace the built-in cascade
+    (:attr:`FlightSoftware.attitude_by_plugin`), the command excitation added to their output."""
+    plugins = controller_plugins(controller, fs)
+    fs.plugins.extend(plugins)
+    for pl in plugins:
+        if isinstance(pl, AutopilotController):
+            fs.attitude_by_plugin = pl.add_commands = True
 
 
 def controller_plugins(controller, fs: FlightSoftware) -> list:
     """Plug-ins for ``controller``: a :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a controller
-    file, or a list of them (e.g. one per axis). Each sees the flight software's saturation of the commands it
-    sets, so an anti-windup compensator acts on exactly the part the flight software cuts off."""
+    file, an :class:`~rotorlab.sim.control.autopilot.AutopilotSpec` (an autopilot's own laws on all three axes, at
+    the flight-software rate), or a list of them (e.g. one per axis). Each sees the flight software's saturation of
+    the commands it sets, so an anti-windup compensator acts on exactly the part the flight software cuts off."""
     specs = controller if isinstance(controller, (list, tuple)) else [controller]
     limits = {"u_lat": fs.u_limit_pct, "u_lon": fs.u_limit_pct, "u_yaw": fs.yaw_u_limit_pct}
     seen, out = set(), []
     for obj in specs:
-        spec = as_controller_spec(obj)
-        clash = seen & set(spec.outputs)
+        if isinstance(obj, AutopilotSpec):
+            plugin = AutopilotController(obj, fs.dt, fs.u_limit_pct, fs.yaw_u_limit_pct)
+            outputs = plugin.outputs
+        else:
+            spec = as_controller_spec(obj)
+            outputs = spec.outputs
+            plugin = StateSpaceController(spec, fs.dt, [limits.get(o, float("inf")) for o in spec.outputs])
+        clash = seen & set(outputs)
         if clash:
             raise ConfigError("two controllers set the same command", field="controller",
                               expected="each command set by at most one controller", got=sorted(clash))
-        seen |= set(spec.outputs)
-        out.append(StateSpaceController(spec, fs.dt, [limits.get(o, float("inf")) for o in spec.outputs]))
+        seen |= set(outputs)
+        out.append(plugin)
     return out
+
+
+def autopilot_dt_s(controller, vehicle_dt_s: float, physics_dt_s: float) -> float:
+    """The flight-software period of a run: the loop period of an autopilot's parameters when they set it
+    (IMU_GYRO_RATEMAX, SCHED_LOOP_RATE) and it is a whole number of physics steps, else the vehicle's. A loop rate
+    left at its default does not count (PX4's and ArduPilot's 400 Hz is 2.5 steps of 1 ms); run.json records the
+    rate flown and the parameters' rate."""
+    specs = controller if isinstance(controller, (list, tuple)) else [controller]
+    for spec in specs:
+        if isinstance(spec, AutopilotSpec):
+            ap = autopilots.get(spec.autopilot)
+            name = ap.LOOP_RATE_PARAM
+            if name in spec.defaulted:
+                continue
+            dt = 1.0 / ap.loop_hz(spec.params)
+            n = dt / physics_dt_s
+            if abs(n - round(n)) < 1e-9 and round(n) >= 1:
+                return dt
+    return vehicle_dt_s
 
 
 INTERRUPTED = "interrupted (Ctrl-C)"
@@ -151,7 +189,8 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
 
     ``controller``: discrete controllers flown in place of the cascade on the commands they set (a
     :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a ``.json``/``.toml`` controller file, or a list of
-    them); the flight software runs at the vehicle's rate (``VehicleSpec.control_dt_s``).
+    them); the flight software runs at the vehicle's rate (``VehicleSpec.control_dt_s``), or at the loop rate of an
+    autopilot's parameters (:func:`autopilot_dt_s`).
 
     A run that diverges (NaN, MuJoCo warning, rig stop, crash) stops early, keeps the log written so far and
     records the reason in ``run.json`` under ``stopped``. ``record_poses`` keeps the body poses, rotor thrusts,
@@ -164,15 +203,17 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     mod, scene = scenarios.get_with_scene(name, scene)
     v = vehicle if hasattr(vehicle, "rotor") else load_vehicle(vehicle)
     duration_s = float(duration_s if duration_s is not None else mod.DURATION_S)
-    n_ticks = check_duration(duration_s, v.control_dt_s, record_poses)
+    control_dt_s = autopilot_dt_s(controller, v.control_dt_s, PHYSICS_DT_S)
+    n_ticks = check_duration(duration_s, control_dt_s, record_poses)
     if out is not None:  # before the simulation: a read-only folder must not cost the run
         atomic.check_writable_dir(out, "run folder")
     gs = resolve_gains(v, gains)
     ctx = scenarios.Context(vehicle=v, scene=scene, gains=gs, seed=seed, duration_s=duration_s,
-                            options=dict(options or {}), dt_s=v.control_dt_s)
+                            options=dict(options or {}), dt_s=control_dt_s)
     setup = mod.setup(ctx)
     noise = setup.sensor_noise if sensor_noise is None else sensor_noise
-    sim = Simulator(scene, v, seed=seed, sensor_noise=noise, disturbances=setup.disturbances)
+    sim = Simulator(scene, v, seed=seed, sensor_noise=noise, disturbances=setup.disturbances,
+                    control_dt_s=control_dt_s)
     fs = make_flight_software(v, gs, setup, sim.control_dt_s, controller if controller is not None else
                               (setup.controller or None))
     columns = {} if setup.drive is not None else dict(BASE_COLUMNS)
@@ -204,6 +245,12 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     if ctl:
         info["controller"] = [{"name": c.name, "dt_s": c.dt_s, "inputs": list(c.inputs), "outputs": list(c.outputs),
                                "states": c.nstates, "antiwindup": c.antiwindup is not None} for c in ctl]
+    aps = [pl for pl in fs.plugins if isinstance(pl, AutopilotController)]
+    if aps:
+        info.setdefault("controller", []).extend(
+            {"name": pl.spec.name, "autopilot": pl.spec.autopilot, "dt_s": pl.dt, "outputs": list(pl.outputs),
+             "loop_hz": 1.0 / pl.dt, "params_loop_hz": pl.ap.loop_hz(pl.spec.params),
+             "params": dict(pl.spec.params), "defaulted": list(pl.spec.defaulted)} for pl in aps)
     metrics_fn = getattr(mod, "metrics", None)
     info["metrics"] = metrics_fn(log, ctx, setup) if metrics_fn else {}
     out_dir = write_run(out, log, info) if out is not None else None
@@ -274,4 +321,4 @@ def _gain_dict(gs: GainSet | None) -> dict | None:
 
 
 __all__ = ["RunResult", "run_scenario", "check_duration", "INTERRUPTED", "resolve_gains", "make_flight_software",
-           "controller_plugins", "BASE_COLUMNS"]
+           "controller_plugins", "add_controllers", "BASE_COLUMNS"]

@@ -117,3 +117,14 @@ def test_sim_imports_neither_ident_nor_tune():
     bad = {m: sorted(t for t in RAW[m] if t.startswith(("rotorlab.ident", "rotorlab.tune")))
            for m in MODULES if m.startswith("rotorlab.sim")}
     assert {m: b for m, b in bad.items() if b} == {}
+
+
+def test_autopilot_laws_are_on_the_ground_floor():
+    """The autopilots' laws serve the flight software, identification and tuning alike, so they import none of
+    them (nor MuJoCo)."""
+    mods = [m for m in MODULES if m == "rotorlab.autopilots" or m.startswith("rotorlab.autopilots.")]
+    assert "rotorlab.autopilots.px4" in mods and "rotorlab.autopilots.ardupilot" in mods
+    bad = {m: sorted(t for t in RAW[m] if t.split(".")[0] == "mujoco"
+                     or t.startswith(("rotorlab.sim", "rotorlab.ident", "rotorlab.tune")))
+           for m in mods}
+    assert {m: b for m, b in bad.items() if b} == {}

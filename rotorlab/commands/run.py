@@ -28,10 +28,11 @@ def add_parser(sub):
     p.add_argument("--scene", default=None, help="scene (default: the scenario's first scene)")
     p.add_argument("--gains", default=None, help="gain set name shipped with the vehicle, or a gains TOML file "
                                                  "(default: the vehicle's standard set)")
-    p.add_argument("--controller", action="append", default=[], metavar="NAME|FILE",
+    p.add_argument("--controller", action="append", default=[], metavar="NAME|AUTOPILOT:PARAMS|FILE",
                    help="fly a discrete controller in place of the cascade (repeatable): a design name "
-                        "(modified-pid, hinf-loopshaping, hinf-loopshaping-aw; TUHH) or a .json/.toml "
-                        "state-space controller file (see rotorlab.sim.control.statespace)")
+                        "(modified-pid, hinf-loopshaping, hinf-loopshaping-aw; TUHH), an autopilot's own laws "
+                        "(px4:defaults, px4:FILE.params, ardupilot:defaults, ardupilot:FILE.parm; docs/autopilots.md) "
+                        "or a .json/.toml state-space controller file (see rotorlab.sim.control.statespace)")
     p.add_argument("--duration", type=float, default=None, help="duration, s (default: the scenario's)")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the sensor noise and the disturbances")
     p.add_argument("--out", default=None, help="run folder (default runs/SCENARIO-VEHICLE-seedN)")

@@ -97,6 +97,16 @@ class FlightSoftware:
     n : int, optional
         Fly ``n`` simulations at once (module docstring, "Many simulations"); ``gains`` may then be a sequence of
         n GainSets. None: one simulation, signals are floats.
+
+    Attributes
+    ----------
+    attitude_by_plugin : bool
+        A plug-in sets all three attitude commands itself (an autopilot's own laws,
+        :class:`rotorlab.sim.control.autopilot.AutopilotController`): the built-in attitude cascade is then not run
+        (its commands would be overwritten), which saves its cost every tick, and the commands the plug-in finds
+        are the command excitation alone, plus, in open-loop mode on the opened axes, the external command and the
+        supervisor (added to the autopilot's output: closed-loop identification with the autopilot flying). Set
+        by the runner when it adds such a plug-in.
     """
 
     def __init__(self, gains: GainSet, mixer: Mixer, dt: float = 0.02, mode: str = "cascade", *, limits,
@@ -147,6 +157,7 @@ class FlightSoftware:
                 raise UnknownNameError("excitation signal", name, SETPOINTS + COMMANDS)
             self.excitation[name] = sig if callable(sig) else np.asarray(sig, dtype=float).ravel().tolist()
         self.plugins = list(plugins)
+        self.attitude_by_plugin = False
         for pl in self.plugins:
             if not isinstance(pl, Plugin):
                 raise ConfigError(field="plugins", expected="objects with reset() and step(t, signals)",
@@ -288,19 +299,29 @@ class FlightSoftware:
             ol = self.open_loop_axes
             sup_lat = self.sup_roll.step(phi, p) if "roll" in ol else 0.0
             sup_lon = self.sup_pitch.step(theta, q) if "pitch" in ol else 0.0
+            by_plugin = self.attitude_by_plugin
             if "roll" in ol:
                 u_lat, p_ref = refs.get("u_lat", 0.0) + ff_lat + sup_lat, math.nan
+            elif by_plugin:
+                u_lat, p_ref = ff_lat, math.nan
             else:
                 u_lat, p_ref = att.roll.step(phi_ref, phi, p, ff_lat)
             if "pitch" in ol:
                 u_lon, q_ref = refs.get("u_lon", 0.0) + ff_lon + sup_lon, math.nan
+            elif by_plugin:
+                u_lon, q_ref = ff_lon, math.nan
             else:
                 u_lon, q_ref = att.pitch.step(theta_ref, theta, q, ff_lon)
             if "yaw" in ol:
                 u_yaw, r_ref = refs.get("u_yaw", 0.0) + ff_yaw, math.nan
+            elif by_plugin:
+                u_yaw, r_ref = ff_yaw, math.nan
             else:
                 u_yaw, r_ref = att.yaw.step(psi_ref, psi, r, ff_yaw)
             sig["sup_lat"], sig["sup_lon"] = sup_lat, sup_lon
+        elif self.attitude_by_plugin:
+            u_lat, u_lon, u_yaw = ff_lat, ff_lon, ff_yaw
+            p_ref = q_ref = r_ref = math.nan
         else:
             u_lat, p_ref = att.roll.step(phi_ref, phi, p, ff_lat)
             u_lon, q_ref = att.pitch.step(theta_ref, theta, q, ff_lon)
