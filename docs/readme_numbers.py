@@ -18,7 +18,6 @@ import os
 # the suite's environment (tests/conftest.py): one BLAS thread, so the numbers are the suite's to the last digit
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 import argparse  # noqa: E402
 import sys  # noqa: E402
