@@ -18,10 +18,10 @@ from rotorlab.vehicles import load_vehicle
 # floats (tests assert that with ==); two code paths agree within these bounds, which hold on any CPU whatever
 # SIMD kernels numpy, OpenBLAS and MuJoCo pick there.
 
-#: an elementary function (atan2, asin, exp, ...) of the same float from two libraries and scaled by the same
-#: constant: numpy's SIMD loops (its AVX-512 ones are SVML's) and the C library are each within 1-2 ulp of the
-#: exact value (glibc's manual lists its errors; numpy's accuracy tests hold its loops to theirs), and the
-#: scaling rounds once more (2 measured between math.atan2 and numpy's AVX-512 arctan2, in degrees)
+#: an elementary function (atan2, asin, exp, ...) of the same float from two libraries, scaled by the same
+#: constant: glibc (1-2 ulp for these on x86-64, its manual says) and numpy's SIMD loops (SVML's on AVX-512) are
+#: each a few ulp from the exact value and the scaling rounds once more; 2 measured between math.atan2 and
+#: numpy's AVX-512 arctan2 in degrees, so twice that
 ELEMENTARY_ULPS = 4
 
 
