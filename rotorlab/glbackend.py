@@ -26,10 +26,9 @@ __all__ = ["BACKENDS", "RenderingUnavailable", "choose", "render_modes", "render
 BACKENDS = (("egl", ("libEGL.so.1", "libEGL.so")), ("osmesa", ("libOSMesa.so.8", "libOSMesa.so.6", "libOSMesa.so")))
 #: where libglvnd looks for EGL vendor drivers: its libEGL loads without one, and then no display initialises
 EGL_VENDOR_DIRS = ("/usr/share/glvnd/egl_vendor.d", "/etc/glvnd/egl_vendor.d")
-#: MUJOCO_GL values that render without a display
+#: MUJOCO_GL values that render without a display, and those that switch MuJoCo's rendering off
 HEADLESS = ("egl", "osmesa")
-#: the value :func:`select` set, None where it left MUJOCO_GL alone
-selected: str | None = None
+DISABLED = ("disable", "disabled", "off", "false", "0")
 
 
 class RenderingUnavailable(RotorlabError, RuntimeError):
@@ -62,7 +61,14 @@ def _egl_vendor_present() -> bool:
 
 
 def choose() -> str | None:
-    """The headless ``MUJOCO_GL`` value this machine supports: 'egl', else 'osmesa', else None."""
+    """The headless ``MUJOCO_GL`` value this machine supports: 'egl', else 'osmesa', else None.
+
+    Examples
+    --------
+    >>> from rotorlab import glbackend
+    >>> glbackend.choose() in ("egl", "osmesa", None)
+    True
+    """
     for name, libs in BACKENDS:
         if _loads(libs) and (name != "egl" or _egl_vendor_present()):
             return name
@@ -71,21 +77,29 @@ def choose() -> str | None:
 
 def select() -> str | None:
     """Set ``MUJOCO_GL`` to :func:`choose`'s backend where nothing else decides it: Linux, no display, the
-    variable unset, MuJoCo not imported yet. Returns the value set (None: left alone)."""
-    global selected
+    variable unset, MuJoCo not imported yet. Returns the value set (None: left alone); ``import rotorlab``
+    calls it."""
     if "MUJOCO_GL" in os.environ or "mujoco" in sys.modules or has_display():
         return None
-    selected = choose()
-    if selected is not None:
-        os.environ["MUJOCO_GL"] = selected
-    return selected
+    chosen = choose()
+    if chosen is not None:
+        os.environ["MUJOCO_GL"] = chosen
+    return chosen
 
 
 def render_modes() -> list[str]:
     """The render modes the environments declare here: ``['rgb_array']`` where MuJoCo has a backend to render
-    with (a display, or MUJOCO_GL set to a headless one), else none."""
+    with (a display, or MUJOCO_GL set to a headless one), else none.
+
+    Examples
+    --------
+    >>> import rotorlab
+    >>> from rotorlab import glbackend
+    >>> glbackend.render_modes() in (["rgb_array"], [])
+    True
+    """
     gl = os.environ.get("MUJOCO_GL", "").lower().strip()
-    if gl in ("disable", "disabled", "off", "false", "0"):
+    if gl in DISABLED:
         return []
     return ["rgb_array"] if gl in HEADLESS or has_display() else []
 
@@ -100,7 +114,9 @@ _HINT = ("install one, or set MUJOCO_GL=egl or osmesa before Python starts; ever
 def require() -> None:
     """Raise :class:`RenderingUnavailable`, saying what to install, where :func:`render_modes` is empty."""
     if not render_modes():
-        raise RenderingUnavailable(f"{_NONE}; {_HINT}")
+        gl = os.environ.get("MUJOCO_GL", "")
+        why = f"MUJOCO_GL={gl} switches MuJoCo's rendering off" if gl.lower().strip() in DISABLED else _NONE
+        raise RenderingUnavailable(f"{why}; {_HINT}")
 
 
 def renderer(model, height: int, width: int):

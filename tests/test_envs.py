@@ -350,7 +350,6 @@ def test_backend_choice_leaves_a_user_setting_alone(monkeypatch):
     for k in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY"):
         monkeypatch.delenv(k, raising=False)
     monkeypatch.delitem(sys.modules, "mujoco")  # as before MuJoCo's first import
-    monkeypatch.setattr(glbackend, "selected", glbackend.selected)
     monkeypatch.setattr(glbackend, "BACKENDS", (("egl", ("libEGL-that-is-not-there.so",)),))
     assert glbackend.select() is None and "MUJOCO_GL" not in os.environ and glbackend.render_modes() == []
     monkeypatch.setattr(glbackend, "BACKENDS", (("osmesa", ("libc.so.6",)),))  # a library that loads

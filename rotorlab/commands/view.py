@@ -90,7 +90,13 @@ def web_command(exe: str, rrds, web_port: int, grpc_port: int) -> list[str]:
 def find_viewer() -> str | None:
     """The rerun viewer executable: the one beside the running interpreter first (rerun-sdk's entry point in a
     virtual environment's ``bin``/``Scripts``, which is not on PATH when the environment is not activated: the
-    viewer that matches the installed SDK), then the first on PATH; None where there is neither."""
+    viewer that matches the installed SDK), then the first on PATH; None where there is neither.
+
+    Examples
+    --------
+    >>> from rotorlab.commands.view import find_viewer
+    >>> exe = find_viewer()  # e.g. '/home/me/proj/.venv/bin/rerun'
+    """
     here = Path(sys.executable).parent  # not resolved: a venv's python is a link to the base interpreter
     for name in ("rerun", "rerun.exe"):
         exe = here / name
