@@ -335,6 +335,11 @@ def _run_clean(code):
     return p.stdout
 
 
+LINUX_ONLY = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="macOS and Windows render without MUJOCO_GL; the choice is Linux's")
+
+
+@LINUX_ONLY
 def test_check_env_passes_on_every_env_without_mujoco_gl():
     """README: check_env passes without a warning, with MUJOCO_GL unset and no display. rotorlab picks EGL (or
     OSMesa) itself and the envs render; where neither library loads they declare no render mode, check_env still
@@ -346,6 +351,7 @@ def test_check_env_passes_on_every_env_without_mujoco_gl():
     assert "libegl1" in out and "libosmesa6" in out, out
 
 
+@LINUX_ONLY
 def test_backend_choice_leaves_a_user_setting_alone(monkeypatch):
     for k in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY"):
         monkeypatch.delenv(k, raising=False)
