@@ -21,6 +21,13 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
 del _os, _var
 
+# MuJoCo's OpenGL backend is fixed when mujoco is first imported, and every module that imports it is under this
+# package: a headless machine gets EGL or OSMesa here (rotorlab.glbackend), before any of them
+from rotorlab import glbackend as _glbackend  # noqa: E402
+
+_glbackend.select()
+del _glbackend
+
 # Gymnasium environments (rotorlab issue 7): registered by entry-point string, so MuJoCo loads only on make().
 try:
     import gymnasium as _gym

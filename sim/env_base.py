@@ -29,6 +29,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
+from rotorlab import glbackend
 from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.sim import randomize
 from rotorlab.sim.simulator import Simulator
@@ -96,9 +97,13 @@ class RotorlabEnv(gym.Env):
     privileged : bool
         Append the true (noise-free, airframe rather than IMU) state to the observation.
     render_mode : {None, 'rgb_array'}
+        'rgb_array' needs an OpenGL backend (:mod:`rotorlab.glbackend`: a display, EGL or OSMesa); without one
+        it raises :class:`rotorlab.glbackend.RenderingUnavailable`.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+    #: 'rgb_array' where MuJoCo has an OpenGL backend (rotorlab.glbackend), else none: gymnasium's check_env
+    #: then checks the env without rendering, and asking for 'rgb_array' says what to install
+    metadata = {"render_modes": glbackend.render_modes(), "render_fps": 50}
     #: reset option keys every env accepts; subclasses extend with :attr:`_extra_options`
     _base_options = ("randomize", "disturbances")
     _extra_options: tuple = ()
@@ -106,8 +111,10 @@ class RotorlabEnv(gym.Env):
     def __init__(self, scene: str, vehicle, *, sensor_noise: bool = True, disturbances=(), randomize=None,
                  episode_s: float = 10.0, effort_weight: float = 0.01, privileged: bool = False,
                  render_mode: str | None = None):
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise UnknownNameError("render mode", str(render_mode), self.metadata["render_modes"])
+        if render_mode is not None and render_mode != "rgb_array":
+            raise UnknownNameError("render mode", str(render_mode), ["rgb_array"])
+        if render_mode is not None:
+            glbackend.require()
         for name, val in (("episode_s", episode_s), ("effort_weight", effort_weight)):
             if isinstance(val, bool) or not isinstance(val, numbers.Real) or not math.isfinite(val):
                 raise ConfigError(field=name, expected="a finite number", got=val)
@@ -289,7 +296,7 @@ class RotorlabEnv(gym.Env):
         s = self.sim
         r = self._renderers.get(id(s.model))
         if r is None:
-            r = self._renderers[id(s.model)] = mujoco.Renderer(s.model, *RENDER_SIZE)
+            r = self._renderers[id(s.model)] = glbackend.renderer(s.model, *RENDER_SIZE)
         cam = mujoco.MjvCamera()
         cam.type = mujoco.mjtCamera.mjCAMERA_FREE
         body = s._airframe

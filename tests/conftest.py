@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-# Rendering tests run headless; MuJoCo picks EGL, falling back to OSMesa in the tests that render.
-os.environ.setdefault("MUJOCO_GL", "egl")
+# No MUJOCO_GL here: the suite runs as a user runs it, and `import rotorlab` picks the headless OpenGL backend
+# (rotorlab.glbackend: EGL, then OSMesa, else no rendering).
 # pytest -n 2 already uses both cores: BLAS threads on top of that only fight each other
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -31,7 +31,7 @@ def repo_module():
 def quick_run(tmp_path_factory):
     """``quick_run(vehicle, seed=0)``: the run folder and log lines of a seeded `rotorlab pipeline --quick` (local
     executor, 2 workers), run once per vehicle and seed in a session and shared by the tests that read it."""
-    # imported here, not above: MuJoCo, which the pipeline loads, must see the environment set above
+    # imported here, not above: the pipeline's workers must see the BLAS thread counts set above
     from rotorlab.pipeline import PipelineOptions, run_pipeline
 
     runs = {}

@@ -1,7 +1,8 @@
 """Plain helpers shared by test modules (fixtures live in conftest.py): the published identified models read
 from the vehicle specs (their one source), a ground-truth plant built from one of them independently of the
-library's cascade code, a reader of a pipeline summary's claim metrics and the walk of a one-file-per-class
-registry package."""
+library's cascade code, a reader of a pipeline summary's claim metrics, the walk of a one-file-per-class
+registry package, and the tolerances of the reproducibility contract (docs/reproducibility.md) for tests that
+compare two code paths."""
 
 import importlib
 import pkgutil
@@ -12,6 +13,44 @@ import numpy as np
 
 from rotorlab.lti import c2d_zoh
 from rotorlab.vehicles import load_vehicle
+
+# The reproducibility contract, docs/reproducibility.md: one code path run twice on one machine gives the same
+# floats (tests assert that with ==); two code paths agree within these bounds, which hold on any CPU whatever
+# SIMD kernels numpy, OpenBLAS and MuJoCo pick there.
+
+#: an elementary function (atan2, asin, exp, ...) of the same float from two libraries, scaled by the same
+#: constant: glibc (1-2 ulp for these on x86-64, its manual says) and numpy's SIMD loops (SVML's on AVX-512) are
+#: each a few ulp from the exact value and the scaling rounds once more; 2 measured between math.atan2 and
+#: numpy's AVX-512 arctan2 in degrees, so twice that
+ELEMENTARY_ULPS = 4
+
+
+def sum_gap_bound(terms_abs, n_ops: int):
+    """How far two evaluations of a sum of products (a dot product, a matrix-vector product, einsum, or such
+    sums nested) may lie apart when they add in another order or with fused multiply-adds: each is within
+    ``gamma_n sum|products|`` of the exact value, ``gamma_n = n u / (1 - n u)``, ``u = eps / 2``, ``n`` the
+    roundings on the longest path (``n`` for a sum of ``n`` products; Higham, Accuracy and Stability of
+    Numerical Algorithms, 2nd ed., section 3.1), so two within twice that. ``terms_abs``: each value's sum of
+    the magnitudes of its products, nested sums expanded."""
+    u = np.finfo(float).eps / 2
+    return 2.0 * n_ops * u / (1.0 - n_ops * u) * np.asarray(terms_abs, dtype=float)
+
+
+def assert_within_ulps(got, want, ulps: float = ELEMENTARY_ULPS, err_msg: str = ""):
+    """``got`` and ``want`` (arrays of one shape) differ by at most ``ulps`` units in the last place of ``want``
+    (docs/reproducibility.md: the same elementary function from two libraries)."""
+    got, want = np.asarray(got, dtype=float), np.asarray(want, dtype=float)
+    assert got.shape == want.shape, err_msg
+    gap = np.abs(got - want) / np.spacing(np.abs(want))
+    assert np.all(gap <= ulps), f"{err_msg}: {gap.max():.1f} ulp apart (allowed {ulps}): {got} vs {want}"
+
+
+def assert_sums_agree(got, want, terms_abs, n_ops: int, err_msg: str = ""):
+    """``got`` and ``want``, two evaluations of the same sums of products, lie within :func:`sum_gap_bound`
+    (docs/reproducibility.md: the same sums in another order or with fused multiply-adds)."""
+    got, want = np.asarray(got, dtype=float), np.asarray(want, dtype=float)
+    bound = sum_gap_bound(terms_abs, n_ops)
+    assert np.all(np.abs(got - want) <= bound), f"{err_msg}: {got} vs {want}, allowed {bound}"
 
 
 def published_tf(vehicle: str, which: str) -> tuple[ct.TransferFunction, float]:

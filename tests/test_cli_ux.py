@@ -4,12 +4,14 @@ on, and the model ident prints."""
 
 import json
 import re
+import sys
 
 import numpy as np
 import pytest
 from helpers import published_tf
 from scipy.signal import lfilter
 
+import rotorlab.commands.view as view
 import rotorlab.plotting as plotting
 from rotorlab.cli import COMMANDS, build_parser, main
 from rotorlab.errors import ConfigError
@@ -108,6 +110,14 @@ def test_list_scenario_shows_options_and_defaults(capsys):
 def test_view_exits_0_without_a_display_and_finds_pipeline_recordings(tmp_path, capsys, monkeypatch):
     for k in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"):
         monkeypatch.delenv(k, raising=False)
+    # as `.venv/bin/rotorlab view` runs without the venv activated: the viewer beside the interpreter, not on PATH
+    venv_bin = tmp_path / "venv" / "bin"
+    venv_bin.mkdir(parents=True)
+    (venv_bin / "rerun").write_text("#!/bin/sh\nexit 0\n")
+    (venv_bin / "rerun").chmod(0o755)
+    monkeypatch.setattr(sys, "executable", str(venv_bin / "python"))
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    assert view.find_viewer() == str(venv_bin / "rerun")
     res = run_scenario("rest", scene="pitch-rig", duration_s=0.2)
     rec = tmp_path / "pl" / "report" / "recordings"
     for name in ("gust__standard", "setpoint__tuned"):
@@ -115,7 +125,7 @@ def test_view_exits_0_without_a_display_and_finds_pipeline_recordings(tmp_path, 
     capsys.readouterr()
     assert main(["view", str(tmp_path / "pl")]) == 0
     text = capsys.readouterr().out
-    assert "no display" in text and "--web" in text
+    assert "no display" in text and "--web" in text and str(venv_bin / "rerun") in text
     assert "gust__standard.rrd" in text and "setpoint__tuned.rrd" in text
     assert main(["view", str(tmp_path / "pl"), "--web", "--print"]) == 0
     cmd = capsys.readouterr().out

@@ -2,21 +2,23 @@
 and the PID baseline as a closed-loop ground truth."""
 
 import os
+import subprocess
+import sys
 import warnings
 
-os.environ.setdefault("MUJOCO_GL", "egl")
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
 
-import gymnasium as gym  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-from gymnasium.utils.env_checker import check_env  # noqa: E402
-
-import rotorlab  # noqa: E402,F401  (registers the envs)
-from rotorlab.designs import design  # noqa: E402
-from rotorlab.errors import UnknownNameError  # noqa: E402
-from rotorlab.sim.disturbances.base import Disturbance  # noqa: E402
-from rotorlab.sim.disturbances.rope_pull import RopePull  # noqa: E402
-from rotorlab.sim.env_baselines import HoverPIDPolicy, RigPIDPolicy, episode_return  # noqa: E402
+import rotorlab  # noqa: F401  (registers the envs)
+from rotorlab import glbackend
+from rotorlab.designs import design
+from rotorlab.errors import UnknownNameError
+from rotorlab.glbackend import RenderingUnavailable
+from rotorlab.sim.disturbances.base import Disturbance
+from rotorlab.sim.disturbances.rope_pull import RopePull
+from rotorlab.sim.env_baselines import HoverPIDPolicy, RigPIDPolicy, episode_return
 
 
 class TorqueKicks(Disturbance):
@@ -276,12 +278,90 @@ def test_disturbance_from_reset_options():
 
 
 def test_render_rgb_array_headless():
-    env = _quiet("rotorlab/PitchRig-v0", render_mode="rgb_array")
-    env.reset(seed=0)
+    """With a backend (a display, or EGL / OSMesa, which `import rotorlab` picks headless) the env renders the
+    scene; without one, asking for 'rgb_array' says what to install (the test is then skipped)."""
     try:
-        img = env.render()
-    except Exception as exc:  # no usable GL backend on this machine
-        pytest.skip(f"MuJoCo offscreen rendering unavailable with MUJOCO_GL={os.environ.get('MUJOCO_GL')}: {exc}")
+        env = _quiet("rotorlab/PitchRig-v0", render_mode="rgb_array")
+    except RenderingUnavailable as exc:
+        assert glbackend.render_modes() == [] and "libegl" in str(exc).lower()
+        pytest.skip(f"no OpenGL backend on this machine: {exc}")
+    env.reset(seed=0)
+    img = env.render()
     assert img.shape == (480, 640, 3) and img.dtype == np.uint8
     assert img.std() > 5.0  # a scene, not a blank frame
     env.close()
+
+
+#: gymnasium's check_env on every registered env, render modes included, then 'rgb_array' asked for, in a fresh
+#: interpreter whose environment has no MUJOCO_GL (as a user's shell); prints the backend and the render outcome
+_CHECK_ALL = """
+import warnings
+import gymnasium as gym
+from gymnasium.utils.env_checker import check_env
+import rotorlab
+from rotorlab import glbackend
+ids = [i for i in gym.registry if i.startswith("rotorlab/")]
+assert len(ids) == 3, ids
+for i in ids:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gym.make(i, disable_env_checker=True).unwrapped)
+try:
+    env = gym.make(ids[0], render_mode="rgb_array", disable_env_checker=True).unwrapped
+    env.reset(seed=0)
+    print("rendered", env.render().shape)
+except glbackend.RenderingUnavailable as exc:
+    print("unavailable:", exc)
+import os
+print("MUJOCO_GL", os.environ.get("MUJOCO_GL"), "modes", glbackend.render_modes())
+"""
+#: the same where no EGL or OSMesa library loads (hidden from ctypes before rotorlab picks a backend)
+_NO_GL_LIBS = """
+import ctypes
+class _Hidden(ctypes.CDLL):
+    def __init__(self, name, *a, **k):
+        if name and ("EGL" in name or "OSMesa" in name):
+            raise OSError(f"{name}: hidden by the test")
+        super().__init__(name, *a, **k)
+ctypes.CDLL = _Hidden
+"""
+
+
+def _run_clean(code):
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM", "DISPLAY",
+                                                               "WAYLAND_DISPLAY")}
+    p = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    return p.stdout
+
+
+LINUX_ONLY = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="macOS and Windows render without MUJOCO_GL; the choice is Linux's")
+
+
+@LINUX_ONLY
+def test_check_env_passes_on_every_env_without_mujoco_gl():
+    """README: check_env passes without a warning, with MUJOCO_GL unset and no display. rotorlab picks EGL (or
+    OSMesa) itself and the envs render; where neither library loads they declare no render mode, check_env still
+    passes, and 'rgb_array' raises RenderingUnavailable naming what to install."""
+    out = _run_clean(_CHECK_ALL)
+    assert ("rendered (480, 640, 3)" in out) == (glbackend.choose() is not None), out
+    out = _run_clean(_NO_GL_LIBS + _CHECK_ALL)
+    assert "MUJOCO_GL None modes []" in out and "unavailable: no OpenGL backend" in out, out
+    assert "libegl1" in out and "libosmesa6" in out, out
+
+
+@LINUX_ONLY
+def test_backend_choice_leaves_a_user_setting_alone(monkeypatch):
+    for k in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY"):
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.delitem(sys.modules, "mujoco")  # as before MuJoCo's first import
+    monkeypatch.setattr(glbackend, "BACKENDS", (("egl", ("libEGL-that-is-not-there.so",)),))
+    assert glbackend.select() is None and "MUJOCO_GL" not in os.environ and glbackend.render_modes() == []
+    monkeypatch.setattr(glbackend, "BACKENDS", (("osmesa", ("libc.so.6",)),))  # a library that loads
+    assert glbackend.select() == "osmesa" and os.environ["MUJOCO_GL"] == "osmesa"
+    monkeypatch.setenv("MUJOCO_GL", "glfw")
+    assert glbackend.select() is None and os.environ["MUJOCO_GL"] == "glfw"
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.delenv("MUJOCO_GL")
+    assert glbackend.select() is None and glbackend.render_modes() == ["rgb_array"]

@@ -33,7 +33,7 @@ from rotorlab.vehicles import VEHICLES_DIR
 
 P2A2 = VEHICLES_DIR / "anteos-p2a2" / "vehicle.toml"
 SPEC = Path(__file__).resolve().parents[1] / "tune" / "specs" / "anteos-p2a2.toml"
-ENV = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+ENV = dict(os.environ)  # as the user's shell gives it: a child picks its own OpenGL backend (rotorlab.glbackend)
 CLI = [sys.executable, "-m", "rotorlab.cli"]
 
 

@@ -2,6 +2,7 @@
 
 import math
 import shutil
+import sys
 import types
 
 import mujoco
@@ -119,11 +120,13 @@ def test_cli_run_rerun_and_view(tmp_path, capsys, monkeypatch):
     capsys.readouterr()
     assert main(["view", str(out), "--print"]) == 0
     assert capsys.readouterr().out.strip().endswith(str(rrd))
-    # no viewer on PATH: the command to use is printed
-
+    # no viewer beside the interpreter nor on PATH: how to get one, and both ways to open the recording
+    monkeypatch.setattr(sys, "executable", str(tmp_path / "no-venv" / "python"))
     monkeypatch.setattr(shutil, "which", lambda name: None)
     assert main(["view", str(rrd)]) == 0
-    assert "not on PATH" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "nor on PATH" in text and "pip install rerun-sdk" in text
+    assert f"rerun {rrd}" in text and f"rotorlab view {rrd} --web" in text
 
 
 def test_view_makes_a_recording_from_a_plain_run_folder(tmp_path, capsys):

@@ -7,6 +7,7 @@ import mujoco
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from helpers import assert_sums_agree
 
 from rotorlab.cli import main
 from rotorlab.errors import ConfigError, UnknownNameError
@@ -171,12 +172,21 @@ def test_controls_only_tick_is_the_plain_tick_regrouped(vehicle, scene, dists):
     assert "mjWARN_BADQ" in fast.check()
 
 
+def _wind_terms(ctrl, rows_wind, wind_terms):
+    """Per control, the magnitude sum of the body wind component it takes (0 for the others)."""
+    terms = np.zeros(len(ctrl))
+    for i, comp, *_ in rows_wind:
+        terms[i] = wind_terms[comp]
+    return terms
+
+
 def test_air_motion_of_one_simulation_is_the_body_wind_of_many_plus_the_air_rotation():
     """set_air_motion (one simulation, every windy tick, in floats) puts into opt.wind and the rotor aero
-    controls the same floats as set_wind's array path (the batched runner) and numpy's matrix product body_wind,
-    for random airframe orientations and winds; with the air's rotation it adds, to every inflow and in-plane
+    controls what set_wind's array path (the batched runner) and numpy's matrix product body_wind put there, for
+    random airframe orientations and winds; with the air's rotation it adds, to every inflow and in-plane
     actuator and as every disc-tilt damper's reference, J_i . (R^T omega) of air_motion_map as numpy computes
-    it."""
+    it. Two code paths, so within the contract's bound for sums of products in another order
+    (docs/reproducibility.md); each path run twice gives the same floats."""
     sim = Simulator("free-flight", "anteos-p2a2", sensor_noise=False)
     m, d = sim.model, sim.data
     aero, motion = sim.aero_ids, air_motion_map(m, d, sim._airframe, sim.scene.aero_actuators)
@@ -191,20 +201,34 @@ def test_air_motion_of_one_simulation_is_the_body_wind_of_many_plus_the_air_rota
     wind, rate = rng.normal(0.0, 4.0, (200, 3)), rng.normal(0.0, 0.5, (200, 3))
     many_ctrl, many_opt = np.zeros((200, m.nu)), np.zeros((200, 3))
     set_wind(many_opt, many_ctrl, xmat, wind, aero)
+    again = np.zeros((200, m.nu))
+    set_wind(np.zeros((200, 3)), again, xmat, wind, aero)
+    assert np.array_equal(again, many_ctrl)  # the batched path, twice
     for k in range(200):
         ctrl, opt = np.zeros(m.nu), np.zeros(3)
         set_air_motion(opt, memoryview(ctrl), memoryview(xmat[k]), wind[k], None, motion)
-        assert np.array_equal(ctrl, many_ctrl[k]) and np.array_equal(opt, wind[k])
+        ctrl2 = np.zeros(m.nu)
+        set_air_motion(np.zeros(3), memoryview(ctrl2), memoryview(xmat[k]), wind[k], None, motion)
+        assert np.array_equal(ctrl2, ctrl) and np.array_equal(opt, wind[k])  # the float path, twice
+        Rabs = np.abs(xmat[k].reshape(3, 3))
+        wind_terms = Rabs.T @ np.abs(wind[k])  # sum |R_ji a_j|: the size the roundings scale with
+        assert_sums_agree(ctrl, many_ctrl[k], _wind_terms(ctrl, rows_wind, wind_terms), 3,
+                          err_msg=f"set_wind, row {k}")
         wb = body_wind(xmat[k], wind[k])
-        assert np.array_equal(ctrl[[2, 3, 1]], wb) and np.array_equal(ctrl[[20, 21, 19]], wb)
+        assert_sums_agree(ctrl[[2, 3, 1]], wb, wind_terms, 3, err_msg=f"body_wind, row {k}")
+        assert_sums_agree(ctrl[[20, 21, 19]], wb, wind_terms, 3, err_msg=f"body_wind, row {k}")
         set_air_motion(opt, ctrl, xmat[k], wind[k], rate[k], motion)
         w = body_wind(xmat[k], rate[k])
-        expect = many_ctrl[k].copy()
+        rate_terms = Rabs.T @ np.abs(rate[k])
+        expect, terms = many_ctrl[k].copy(), _wind_terms(ctrl, rows_wind, wind_terms)
         for i, _, *J in rows_wind:
             expect[i] += np.dot(J, w)
+            terms[i] += np.abs(J) @ rate_terms
         for i, *J in rows_tilt:
             expect[i] = np.dot(J, w)
-        np.testing.assert_allclose(ctrl, expect, rtol=1e-14, atol=1e-15)
+            terms[i] = np.abs(J) @ rate_terms
+        # the longest path: 3 products summed (R^T omega), times J and summed over 3, plus the wind: 7 roundings
+        assert_sums_agree(ctrl, expect, terms, 7, err_msg=f"with the air's rotation, row {k}")
     ctrl = np.zeros(m.nu)
     set_wind(opt, ctrl, None, wind[0], aero)  # no airframe: the wind unrotated
     assert np.array_equal(ctrl[[2, 3, 1]], wind[0])

@@ -87,17 +87,41 @@ def web_command(exe: str, rrds, web_port: int, grpc_port: int) -> list[str]:
     return [exe, "--serve-web", "--web-viewer-port", str(web_port), "--port", str(grpc_port), *map(str, rrds)]
 
 
+def find_viewer() -> str | None:
+    """The rerun viewer executable: the one beside the running interpreter first (rerun-sdk's entry point in a
+    virtual environment's ``bin``/``Scripts``, which is not on PATH when the environment is not activated: the
+    viewer that matches the installed SDK), then the first on PATH; None where there is neither.
+
+    Examples
+    --------
+    >>> from rotorlab.commands.view import find_viewer
+    >>> exe = find_viewer()  # e.g. '/home/me/proj/.venv/bin/rerun'
+    """
+    here = Path(sys.executable).parent  # not resolved: a venv's python is a link to the base interpreter
+    for name in ("rerun", "rerun.exe"):
+        exe = here / name
+        if exe.is_file() and os.access(exe, os.X_OK):
+            return str(exe)
+    return shutil.which("rerun")
+
+
 def run(args) -> int:
     import shlex
 
     rrds = find_recordings(args.path)
-    exe = shutil.which("rerun")
-    native = ["rerun" if exe is None or not args.print_only else exe, *map(str, rrds)]
+    exe = find_viewer()
+    native = [exe or "rerun", *map(str, rrds)]
     web = web_command(exe or "rerun", rrds, args.web_port, args.grpc_port)
     names = ", ".join(r.name for r in rrds)
-    if exe is None or args.print_only:
-        if exe is None:
-            print("the rerun viewer is not on PATH (pip install rerun-sdk provides it); open the recording(s) with:")
+    web_hint = (f"rotorlab view {shlex.quote(str(args.path))} --web   (serves the web viewer over HTTP, no display "
+                f"needed; then open http://localhost:{args.web_port})")
+    if exe is None:
+        print(f"the rerun viewer is neither beside this Python ({Path(sys.executable).parent}) nor on PATH "
+              "(pip install rerun-sdk provides it); once installed, open the recording(s) with:")
+        print(f"  in a window:             {shlex.join(native)}")
+        print(f"  or serve the web viewer: {web_hint}")
+        return 0
+    if args.print_only:
         print(shlex.join(web if args.web else native))
         return 0
     if args.web:
@@ -113,8 +137,7 @@ def run(args) -> int:
         return 0 if rc in (0, -2, 130) else rc
     if not has_display():
         print(f"no display here (neither DISPLAY nor WAYLAND_DISPLAY is set), so no viewer window for {names}.")
-        print(f"  serve the web viewer:    rotorlab view {shlex.quote(str(args.path))} --web   "
-              f"(then open http://localhost:{args.web_port})")
+        print(f"  serve the web viewer:    {web_hint}")
         print(f"  or, with a display:      {shlex.join(native)}")
         return 0
     print(f"opening {names} in the rerun viewer")

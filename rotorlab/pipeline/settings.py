@@ -22,14 +22,18 @@ _LEVELS = {
     # closed-loop validation, in-flight PRBS
     "full": dict(id_s=120.0, cv_s=40.0, val_s=30.0, flight_s=90.0, moesp_orders=[2, 3, 4, 5, 6],
                  moesp_horizons=[20, 30, 40], pbsid_orders=[2, 3, 4, 5, 6], pbsid_horizons=[[11, 7], [15, 10],
-                 [20, 10]], lms_orders=[2, 3, 4, 5], lms_taps=60, n_boot=1000, n_mc=1000, tune_starts=4,
+                 [20, 10]], lms_orders=[2, 3, 4, 5], lms_taps=60, n_boot=1000, n_mc=1000, tune_starts=8,
                  validation_s={}, record_runs=None, hinf_restarts=3, oe_restarts=2, greybox_periods=11,
                  greybox_restarts=1),
     # quick: half the campaign, the published best settings plus one alternative per grid, 50 bootstrap
-    # replications, 100 Monte Carlo samples, four tuning starts, shorter hover
+    # replications, 100 Monte Carlo samples, shorter hover. Eight tuning starts (full too): the P2-A2 spec's optimum is a
+    # flat valley (starts end 0.2 % apart in the objective with 5-6.5 % linear-step overshoot) and a last-bit
+    # difference (another CPU's BLAS kernels) moves some starts' end points, so four starts let the best one
+    # change with the CPU (overshoot 5.6 % or 4.7 % on seed 3); with six to twelve the same start wins on
+    # AVX-512, with numpy's AVX-512 loops off, and with OpenBLAS's Haswell kernels (docs/reproducibility.md)
     "quick": dict(id_s=60.0, cv_s=20.0, val_s=20.0, flight_s=60.0, moesp_orders=[2, 4], moesp_horizons=[40],
                   pbsid_orders=[2, 5], pbsid_horizons=[[11, 7], [20, 10]], lms_orders=[2, 4], lms_taps=50, n_boot=50,
-                  n_mc=100, tune_starts=4, validation_s={"hover": 24.0}, record_runs=4, hinf_restarts=1,
+                  n_mc=100, tune_starts=8, validation_s={"hover": 24.0}, record_runs=4, hinf_restarts=1,
                   oe_restarts=0, greybox_periods=11, greybox_restarts=0),
     "tiny": dict(id_s=24.0, cv_s=10.0, val_s=8.0, flight_s=20.0, moesp_orders=[4], moesp_horizons=[20],
                  pbsid_orders=[2], pbsid_horizons=[[11, 7]], lms_orders=[2], lms_taps=40, n_boot=8, n_mc=20,
