@@ -116,15 +116,19 @@ def read_dataflash(path) -> FlightLog:
         log.airborne_source = f"{log.airborne_source} and {src}" if log.airborne_source else src
     if "SIDD" in cols:
         ts = _time(cols["SIDD"], path, "SIDD")
-        ax = int(cols["SIDS"][-1]["Ax"]) if "SIDS" in cols else 0
-        axis = ARDUPILOT_SID_AXES.get(ax)
-        if axis is None:
-            log.notes.append(f"SIDD logged but SIDS.Ax = {ax} names no roll/pitch/yaw axis")
-        else:
-            # SIDD is written every loop while the chirp runs: a gap of more than 0.5 s ends one excitation window
-            gaps = np.flatnonzero(np.diff(ts) > 0.5)
-            starts, stops = np.r_[0, gaps + 1], np.r_[gaps, len(ts) - 1]
-            log.excitation = [Interval(float(ts[a]), float(ts[b]), axis) for a, b in zip(starts, stops)]
+        sids = cols.get("SIDS", [])
+        t_sids = _time(sids, path, "SIDS", events=True) if sids else np.zeros(0)
+        # SIDD is written every loop while the chirp runs: a gap of more than 0.5 s ends one excitation window,
+        # whose axis is that of the last SIDS (the settings logged when SYSID mode starts) before it
+        gaps = np.flatnonzero(np.diff(ts) > 0.5)
+        for a, b in zip(np.r_[0, gaps + 1], np.r_[gaps, len(ts) - 1]):
+            before = np.flatnonzero(t_sids <= ts[a] + 1e-9)
+            ax = int(sids[before[-1]]["Ax"]) if before.size else 0
+            axis = ARDUPILOT_SID_AXES.get(ax)
+            if axis is None:
+                log.notes.append(f"SIDD at {ts[a]:.1f} s: SIDS.Ax = {ax} names no roll/pitch/yaw axis")
+            else:
+                log.excitation.append(Interval(float(ts[a]), float(ts[b]), axis))
     return log
 
 
