@@ -287,3 +287,79 @@ def test_window_override_is_used(flight, tmp_path):
     assert [(w.start_s, w.stop_s, w.reason) for w in split.ident] == [(4.0, 8.0, "given by the user")]
     assert math.isclose(split.holdout[0].start_s, log.excitation[0].start_s + 0.6 * log.excitation[0].duration_s,
                         abs_tol=0.01)
+
+
+def test_controller_at_another_rate_keeps_the_tustin_law():
+    from rotorlab.ident.flightlogs.identify import controller_at
+
+    C = ct.tf([0.003, 0.15, 0.2], [0.002, 1.0, 0.0])  # PID with filtered derivative
+    at_1khz = ct.c2d(ct.ss(C), 0.001, method="tustin")
+    moved, direct = controller_at(at_1khz, 0.004), ct.c2d(ct.ss(C), 0.004, method="tustin")
+    w = np.logspace(-1, 2.5, 30)
+    np.testing.assert_allclose(moved(np.exp(1j * w * 0.004)), direct(np.exp(1j * w * 0.004)), rtol=1e-8)
+
+
+# -- the command line and the report --------------------------------------------------------------------------------
+
+def test_cli_identifies_a_flight_log_and_writes_the_report(flight, tmp_path, capsys):
+    import json
+
+    from rotorlab.cli import main
+
+    path = _write("ulog", flight, tmp_path)
+    out = tmp_path / "models"
+    assert main(["ident", str(path), "--axis", "roll", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "roll  closed-loop" in text and "held-out" in text
+    doc = json.loads((out / "roll.json").read_text())
+    assert doc["units"] == {"rate_out": "1", "rate": "rad/s"} and doc["input"] == ["rate_out"]
+    assert doc["settings"]["extra"]["windows"] and doc["vaf"][0] > 80
+    cl = json.loads((out / "roll-closed-loop.json").read_text())
+    assert cl["units"] == {"rate_sp": "rad/s", "rate": "rad/s"} and cl["dt"] == pytest.approx(0.004)
+    page = (out / "report.html").read_text()
+    for png in ("timeline.png", "roll-rates.png", "roll-spectra.png", "roll-fit.png"):
+        assert (out / png).stat().st_size > 1000 and png in page
+    assert "autopilot excitation window" in page  # the reason each window was chosen
+
+
+def test_controller_plugs_into_the_run(flight, tmp_path):
+    import json
+
+    from rotorlab.ident.flightlogs.run import identify_flight_log
+
+    path = _write("dataflash", flight, tmp_path)
+    res = identify_flight_log(path, tmp_path / "m", ["pitch"], controller=lambda log, axis: controller(axis).lti(),
+                              report=False)
+    m = res.models["pitch"]["plant-indirect"]
+    assert nugap(m.model.with_delay(), true_plant_d("pitch", m.dt)) < 0.05
+    doc = json.loads((tmp_path / "m" / "pitch.json").read_text())
+    assert doc["settings"]["extra"]["kind"] == "plant-indirect"
+    assert doc["settings"]["extra"]["params"]["K"] == pytest.approx(350.0, rel=0.03)
+
+
+@pytest.mark.parametrize("case, expect", [
+    ("truncated", "truncated"),
+    ("norate", "no RATE messages"),
+    ("ground", "no airborne time"),
+    ("still", "no excitation on the roll axis"),
+])
+def test_cli_bad_logs_exit_2_saying_what_is_missing(case, expect, flight, tmp_path, capsys):
+    from rotorlab.cli import main
+
+    if case == "truncated":
+        data = _write("ulog", flight, tmp_path).read_bytes()
+        path = tmp_path / "cut.ulg"
+        path.write_bytes(data[: len(data) // 3])
+    elif case == "norate":
+        msgs = dataflash_messages(flight)
+        del msgs["RATE"]
+        path = write_dataflash(tmp_path / "norate.bin", msgs)
+    elif case == "ground":
+        topics = px4_topics(flight)
+        topics["vehicle_land_detected"]["landed"][:] = 1
+        path = write_ulog(tmp_path / "ground.ulg", topics)
+    else:
+        path = write_ulog(tmp_path / "still.ulg", px4_topics(fly(seed=1, excite_s=6.0, excite=False)))
+    rc = main(["ident", str(path), "--axis", "roll", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert rc == 2 and expect in err and "Traceback" not in err, err

@@ -80,7 +80,7 @@ def build_px4(topics: dict, params: dict, path: str, fmt: str, version: str = ""
             log.airborne = and_intervals(log.airborne, by_thrust[0]) if by_thrust[0] else []
             log.airborne_source += " and " + by_thrust[1]
     elif by_thrust is not None:
-        log.airborne, log.airborne_source = by_thrust
+        log.airborne, log.airborne_source = by_thrust[0], "armed and " + by_thrust[1]
     at = topics.get("autotune_attitude_control_status")
     if at is not None and "state" in at and len(at["timestamp"]):
         ts = _time(topics, "autotune_attitude_control_status", path, events=True)
@@ -127,7 +127,7 @@ def airborne_from_thrust(t_s, thrust, source, armed, min_s: float = 1.0):
         on |= (t_s >= i.start_s) & (t_s <= i.stop_s)
     active = on & (thrust > 0.05)
     if not active.any():
-        return [], f"{source} (never above idle while armed)"
+        return [], f"{source} never above idle while armed"
     level = 0.5 * float(np.median(thrust[active]))
     iv = [i for i in intervals_where(t_s, active & (thrust >= level), "airborne") if i.duration_s >= min_s]
-    return iv, f"armed and {source} >= {level:.3g} (half its armed median)"
+    return iv, f"{source} >= {level:.3g} (half its armed median)"

@@ -113,7 +113,7 @@ def read_dataflash(path) -> FlightLog:
         tc = _time(cols["CTUN"], path, "CTUN")
         iv, src = airborne_from_thrust(tc, np.array([r["ThO"] for r in cols["CTUN"]], float), "CTUN.ThO", log.armed)
         log.airborne = and_intervals(log.airborne, iv) if log.airborne_source and iv else iv
-        log.airborne_source = f"{log.airborne_source} and {src}" if log.airborne_source else src
+        log.airborne_source = f"{log.airborne_source} and {src}" if log.airborne_source else f"armed and {src}"
     if "SIDD" in cols:
         ts = _time(cols["SIDD"], path, "SIDD")
         sids = cols.get("SIDS", [])

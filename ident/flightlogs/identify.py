@@ -16,7 +16,7 @@ import control as ct
 import numpy as np
 
 from rotorlab.errors import DataError
-from rotorlab.lti import as_ss, d2c_zoh, is_discrete
+from rotorlab.lti import as_ss, is_discrete
 
 from ..delay import estimate_delay
 from ..greybox import GreyBoxModel, Param, _closed_loop, oe_fit_closed_loop, simulate_closed_loop
@@ -250,15 +250,37 @@ def rate_plant_structure(K: float = 100.0, tau_s: float = 0.03, delay_s: float =
     return GreyBoxModel("rate-plant", params, build, delay_s="delay_s", inputs=["rate_out"], outputs=["rate"])
 
 
+def _d2c_tustin(sysd: ct.StateSpace) -> ct.StateSpace:
+    """The continuous system whose Tustin discretisation at ``sysd.dt`` is ``sysd`` (exact inverse).
+
+    A controller's difference states have poles at ``z = 0``, which the ZOH inverse (a matrix logarithm) cannot
+    map; the bilinear map can (to ``s = -2/dt``), so a round trip through it at another rate keeps the response.
+    Needs no pole at ``z = -1``.
+    """
+    A, B, C, D = (np.asarray(M, float) for M in (sysd.A, sysd.B, sysd.C, sysd.D))
+    T = float(sysd.dt)
+    if A.shape[0] == 0:
+        return ct.ss([], [], [], D)
+    M = np.linalg.inv(A + np.eye(A.shape[0]))
+    return ct.ss((2.0 / T) * (A - np.eye(A.shape[0])) @ M, (2.0 / T) * M @ B, 2.0 * C @ M, D - C @ M @ B)
+
+
 def controller_at(controller, dt: float) -> ct.StateSpace:
     """The controller as a discrete system at ``dt``: as is when its sample time is ``dt``; a continuous one by
-    Tustin; a discrete one at another rate (the autopilot's loop rate above the log's) through its ZOH-equivalent
-    continuous form, then Tustin at ``dt``."""
+    Tustin; a discrete one at another rate (the autopilot's loop rate above the log's) through the continuous
+    system whose Tustin form it is, then Tustin at ``dt``.
+
+    Examples
+    --------
+    >>> C = controller_at(ct.c2d(ct.tf([0.1, 1.0], [1.0, 0.0]), 0.001, "tustin"), 0.004)
+    >>> float(C.dt)
+    0.004
+    """
     K = as_ss(controller)
     if is_discrete(K):
         if abs(float(K.dt) - dt) <= 1e-9 * dt:
             return K
-        K = d2c_zoh(K)
+        K = _d2c_tustin(K)
     return ct.c2d(K, dt, method="tustin")
 
 
