@@ -51,7 +51,7 @@ CANDIDATES = {
 }
 MIN_SAMPLES = 100
 # a closed rate loop is stable; a plant may integrate (rate from torque), so one pole may sit on the unit circle
-MAX_POLE_RADIUS = {"closed-loop": 1.0 - 1e-9, "plant": 1.005}
+MAX_POLE_RADIUS = {"closed-loop": 1.0 - 1e-9, "plant": 1.0 + 1e-4}
 KINDS = {"closed-loop": ("rate_sp", "rate"), "plant": ("rate_out", "rate")}
 
 
@@ -169,7 +169,7 @@ def _delay(u, y, max_delay: int = 10) -> int:
     try:
         return estimate_delay(u, y, max_delay)
     except DataError:
-        return 0
+        return 2  # no significant lag found: the candidates then try delays 2, 1 and 0
 
 
 def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candidates=None) -> AxisModel:
