@@ -179,8 +179,8 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
     below it (the estimate reads the first significant lag, which a slow axis pushes late), is fitted on the
     first 75 % of the longest identification window and scored on the rest
     of the identification windows; candidates with a pole outside the unit circle (on it for a plant, which
-    may integrate) are dropped; the best is refitted on the whole longest window and scored on the held-out
-    windows.
+    may integrate) are dropped; the best is refitted on all identification windows joined (each about its mean)
+    and scored on the held-out windows.
 
     Raises
     ------
@@ -225,10 +225,13 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
         raise DataError(f"no {kind} model of the {rec.axis} axis could be fitted: "
                         + "; ".join(t for t, _ in tried))
     delay = best[3]
-    model = _fit(best[0], _centred(u, main), _centred(y, main), rec.dt, delay, best[1])
+    # the refit takes every identification window, each about its own mean, joined end to end: the seams cost a
+    # few samples of misfit, the extra data (pilot inputs come in bursts) is worth more
+    model = _fit(best[0], np.concatenate([_centred(u, r) for r in runs]),
+                 np.concatenate([_centred(y, r) for r in runs]), rec.dt, delay, best[1])
     radius = float(np.max(np.abs(np.linalg.eigvals(np.asarray(model.sys.A, float))), initial=0.0))
     if radius > MAX_POLE_RADIUS[kind]:
-        # the refit on the whole window crossed the unit circle: keep the candidate fit that passed the check
+        # the refit crossed the unit circle: keep the candidate fit that passed the check
         model = _fit(best[0], uf, yf, rec.dt, delay, best[1])
     v, pred = holdout_prediction(model, rec, u_name, y_name, split.holdout)
     return AxisModel(rec.axis, kind, model, u_name, y_name, {u_name: rec.units[u_name], y_name: rec.units[y_name]},
@@ -292,7 +295,9 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
     and ArduPilot form with derivative on the measurement and feed-forward) or ``rate_out = C (rate_sp - rate)``
     (one input) is simulated with the plant ``structure`` (default :func:`rate_plant_structure`) and the plant
     parameters fitted to the measured rate (``oe_fit_closed_loop``, initial state estimated) on the longest
-    identification window. The fitted plant is closed again with the controller and scored on the held-out
+    identification window, the controller moved to the log's rate (:func:`controller_at`: a log written slower
+    than the loop does not hold the set-point's changes between its samples, so the loop cannot be simulated
+    more faithfully at its own rate). The fitted plant is closed again with the controller and scored on the held-out
     windows; ``model`` is the discretised plant.
 
     Parameters
@@ -317,21 +322,21 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
         raise DataError(f"the {rec.axis} axis has no identification window of at least {MIN_SAMPLES} samples")
     main = max(runs, key=len)
     r, y = rec.data["rate_sp"][main], rec.data["rate"][main]
+    r, y = r - r.mean(), y - y.mean()
     # a coarse scan of the gain first: the closed-loop cost is far from convex in K (too high a gain makes the
     # simulated loop unstable, a plateau for the optimiser); the scan simulates, it does not fit
     theta0 = None
     if "K" in structure.free:
-        k0 = structure.param("K").value
+        grid = structure.param("K").value * np.logspace(-2, 2, 17)
         costs = []
-        for kk in k0 * np.logspace(-2, 2, 17):
-            ys = simulate_closed_loop(structure, K, r - r.mean(), rec.dt, {**structure.values(), "K": float(kk)})
+        for kk in grid:
+            ys = simulate_closed_loop(structure, K, r, rec.dt, {**structure.values(), "K": float(kk)})
             with np.errstate(over="ignore", invalid="ignore"):  # a gain that destabilises the loop diverges
-                e = (y - y.mean()) - (ys[:, 0] - ys[:, 0].mean())
+                e = y - (ys[:, 0] - ys[:, 0].mean())
                 cost = float(np.mean(e * e))
             costs.append(cost if np.isfinite(cost) else np.inf)
-        theta0 = {"K": float(k0 * np.logspace(-2, 2, 17)[int(np.argmin(costs))])}
-    res = oe_fit_closed_loop(structure, K, r - r.mean(), y - y.mean(), rec.dt, theta0, estimate_x0=True,
-                             cov="white", rng=rng)
+        theta0 = {"K": float(grid[int(np.argmin(costs))])}
+    res = oe_fit_closed_loop(structure, K, r, y, rec.dt, theta0, estimate_x0=True, cov="white", rng=rng)
     plant_d = res.discrete()
     cl = IdentifiedModel(sys=_closed_loop(as_ss(plant_d.with_delay()), K, 0), method="closed-loop-through-controller")
     v, pred = holdout_prediction(cl, rec, "rate_sp", "rate", split.holdout)
