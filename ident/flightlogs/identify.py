@@ -44,6 +44,8 @@ CANDIDATES = {
         ("arx", {"na": 4, "nb": 4}),
     ),
     "plant": (
+        ("pbsid", {"order": 2, "past": 20, "future": 10}),
+        ("pbsid", {"order": 4, "past": 20, "future": 10}),
         ("pbsid", {"order": 2, "past": 40, "future": 20}),
         ("pbsid", {"order": 3, "past": 40, "future": 20}),
         ("pbsid", {"order": 4, "past": 40, "future": 20}),

@@ -59,7 +59,8 @@ def identify_flight_log(path, out_dir, axes=AXES, *, windows=None, holdout: floa
     """Identify every axis of ``axes`` in a flight log and write the results to ``out_dir``.
 
     Per axis: the closed loop (rate_sp -> rate), the plant (rate_out -> rate) where the log has the rate-loop
-    output, and the plant through the known controller where ``controller(log, axis)`` gives one. Files:
+    output, and the plant through the known controller where ``controller(log, axis)`` gives one. An axis whose
+    closed loop cannot be identified ends the run (DataError); a plant model that cannot be fitted is a note. Files:
     ``<axis>.json`` (the plant: through the controller where known, else direct; else the closed loop), one
     ``<axis>-<kind>.json`` per model, and ``report.html`` with its PNGs. Units are recorded in every model file.
 
@@ -106,13 +107,21 @@ def identify_flight_log(path, out_dir, axes=AXES, *, windows=None, holdout: floa
         split_cl = select_windows(log, rec, "rate_sp", "rate", holdout=holdout, override=windows)
         models["closed-loop"] = identify_direct(rec, split_cl, "closed-loop")
         if "rate_out" in names:
-            split_p = select_windows(log, rec, "rate_out", "rate", holdout=holdout, override=windows)
-            models["plant"] = identify_direct(rec, split_p, "plant")
+            # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
+            # does not excite enough is a note, not the end of the run
+            try:
+                split_p = select_windows(log, rec, "rate_out", "rate", holdout=holdout, override=windows)
+                models["plant"] = identify_direct(rec, split_p, "plant")
+            except DataError as exc:
+                res.notes.append(f"{axis}: no direct plant model: {exc}")
         else:
             res.notes.append(f"{axis}: no rate-loop output in the log: plant only through the controller")
         C = controller(log, axis) if controller is not None else None
         if C is not None:
-            models["plant-indirect"] = identify_plant_indirect(rec, split_cl, C)
+            try:
+                models["plant-indirect"] = identify_plant_indirect(rec, split_cl, C)
+            except (DataError, ValueError) as exc:
+                res.notes.append(f"{axis}: no plant through the controller: {exc}")
         else:
             res.notes.append(f"{axis}: plant through the known controller skipped (rotorlab.autopilots not installed)")
         res.models[axis] = models
