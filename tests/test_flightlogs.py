@@ -363,3 +363,26 @@ def test_cli_bad_logs_exit_2_saying_what_is_missing(case, expect, flight, tmp_pa
     rc = main(["ident", str(path), "--axis", "roll", "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert rc == 2 and expect in err and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("release, states", [(0x010E0000, (2, 4, 6)), (0x01110000, (3, 6, 9))])
+def test_autotune_state_layout_follows_the_release(release, states, flight, tmp_path):
+    """PX4 autotune's excitation states per axis: roll 2, pitch 4, yaw 6 before v1.17; 3, 6, 9 (after the
+    amplitude-detection states) from v1.17."""
+    topics = px4_topics(flight)
+    legacy = topics["autotune_attitude_control_status"]["state"]
+    topics["autotune_attitude_control_status"]["state"] = np.select(
+        [legacy == 2, legacy == 4, legacy == 6], states, default=0).astype(np.uint8)
+    write_ulog(tmp_path / "at.ulg", topics, info={"ver_sw_release": release})
+    log = read_flight_log(tmp_path / "at.ulg")
+    assert [i.label for i in log.excitation] == list(AXES)
+    for i, axis in zip(log.excitation, AXES):
+        assert i.duration_s == pytest.approx(np.diff(flight.excite_s[axis])[0], abs=0.03)
+
+
+def test_dataflash_millisecond_stamps_are_seconds(tmp_path):
+    rows = [(1000 + 4 * k, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) for k in range(N)]
+    write_dataflash(tmp_path / "ms.bin", {"RATE": ("Ifffffffff", ["TimeMS", "RDes", "R", "ROut", "PDes", "P", "POut",
+                                                                  "YDes", "Y", "YOut"], rows)})
+    s = read_flight_log(tmp_path / "ms.bin").series("roll", "rate")
+    np.testing.assert_allclose(s.t_s, (1000 + 4 * np.arange(N)) * 1e-3)

@@ -11,7 +11,7 @@ import numpy as np
 from rotorlab.errors import DataError
 
 from .flightlog import FlightLog, Interval, Series, intervals_where, labelled_intervals, quat_to_euler, time_base_s
-from .names import AXES, PX4_AUTOTUNE_STATES, PX4_NAV_STATES, SIGNAL_UNITS, SIGNALS, rows_for
+from .names import AXES, PX4_AUTOTUNE_NEW_LAYOUT, PX4_AUTOTUNE_STATES, PX4_NAV_STATES, SIGNAL_UNITS, SIGNALS, rows_for
 
 ARMING_STATE_ARMED = 2  # vehicle_status.arming_state (msg/VehicleStatus.msg), the same number in every release
 
@@ -84,7 +84,8 @@ def build_px4(topics: dict, params: dict, path: str, fmt: str, version: str = ""
     at = topics.get("autotune_attitude_control_status")
     if at is not None and "state" in at and len(at["timestamp"]):
         ts = _time(topics, "autotune_attitude_control_status", path, events=True)
-        layout = "v1.15" if version and tuple(int(x) for x in version[1:].split(".")[:2]) >= (1, 15) else "legacy"
+        new = version and tuple(int(x) for x in version[1:].split(".")[:2]) >= PX4_AUTOTUNE_NEW_LAYOUT
+        layout = "v1.17" if new else "legacy"
         for axis, states in PX4_AUTOTUNE_STATES[layout].items():
             log.excitation += intervals_where(ts, np.isin(np.asarray(at["state"]), states), axis, t_end)
         log.excitation.sort(key=lambda i: i.start_s)

@@ -19,7 +19,7 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["NameRow", "SIGNALS", "AXES", "PX4_ROWS", "ARDUPILOT_ROWS", "rows_for", "SIGNAL_UNITS",
-           "PX4_AUTOTUNE_STATES", "ARDUPILOT_SID_AXES", "ARDUCOPTER_MODES", "PX4_NAV_STATES"]
+           "PX4_AUTOTUNE_STATES", "PX4_AUTOTUNE_NEW_LAYOUT", "ARDUPILOT_SID_AXES", "ARDUCOPTER_MODES", "PX4_NAV_STATES"]
 
 AXES = ("roll", "pitch", "yaw")
 SIGNALS = ("rate_sp", "rate", "rate_out", "att", "att_sp")
@@ -100,12 +100,13 @@ def rows_for(autopilot: str, signal: str) -> tuple[NameRow, ...]:
 
 
 # PX4 autotune_attitude_control_status.state: the excitation states per axis. The amplitude-detection states
-# (msg/AutotuneAttitudeControlStatus.msg) shifted the numbering; the layout is told by whether the log's
-# release is at least v1.15 (ver_sw_release), the first release whose message carries them.
+# (PX4-Autopilot pull request 25508, merged September 2025, msg/AutotuneAttitudeControlStatus.msg) shifted the
+# numbering; the layout is told by the log's release (ver_sw_release): v1.17 (its first) and later.
 PX4_AUTOTUNE_STATES = {
     "legacy": {"roll": (2,), "pitch": (4,), "yaw": (6,)},
-    "v1.15": {"roll": (2, 3), "pitch": (5, 6), "yaw": (8, 9)},
+    "v1.17": {"roll": (2, 3), "pitch": (5, 6), "yaw": (8, 9)},
 }
+PX4_AUTOTUNE_NEW_LAYOUT = (1, 17)
 
 # ArduPilot SID_AXIS (libraries/AP_... mode_systemid.cpp, ArduCopter SYSID mode): 1-3 angle input, 4-6
 # recovery, 7-9 rate, 10-12 mixer, each roll/pitch/yaw; 13 mixer thrust.
