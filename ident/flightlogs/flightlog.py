@@ -90,7 +90,13 @@ def time_base_s(t_raw, unit: str | None, source: str, *, min_rate_hz: float = 0.
 
 def quat_to_euler(q) -> np.ndarray:
     """Roll, pitch, yaw (rad, ZYX Euler angles) from unit quaternions ``(N, 4)`` ordered w, x, y, z (PX4's
-    ``q[0..3]``)."""
+    ``q[0..3]``).
+
+    Examples
+    --------
+    >>> quat_to_euler([[np.cos(0.25), np.sin(0.25), 0.0, 0.0]]).round(6)  # 0.5 rad about x
+    array([[0.5, 0. , 0. ]])
+    """
     q = np.asarray(q, dtype=float)
     w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
@@ -220,6 +226,14 @@ class FlightLog:
         The autopilot's parameters at the start of the log.
     notes : list of str
         What the reader noticed (fallback topics, truncation, dropped stamps).
+
+    Examples
+    --------
+    >>> from rotorlab.ident.flightlogs import read_flight_log
+    >>> log = read_flight_log("flight.ulg")  # doctest: +SKIP
+    >>> rec = log.record("roll", ("rate_sp", "rate"))  # doctest: +SKIP
+    >>> rec.dt, rec.units  # doctest: +SKIP
+    (0.004, {'rate_sp': 'rad/s', 'rate': 'rad/s'})
     """
 
     path: str
@@ -291,6 +305,12 @@ def resample(t_s, x, t_new, rate_hz: float) -> np.ndarray:
     """``x`` sampled at ``t_s`` onto ``t_new`` (uniform at ``rate_hz``), anti-alias filtered when ``x`` is faster.
 
     See :meth:`FlightLog.record`.
+
+    Examples
+    --------
+    >>> t = np.arange(0, 2, 0.002)
+    >>> bool(resample(t, np.sin(2 * np.pi * 200 * t), np.arange(0.5, 1.5, 0.004), 250.0).std() < 0.01)
+    True
     """
     t_s, x = np.asarray(t_s, float), np.asarray(x, float)
     d = np.diff(t_s)
