@@ -287,6 +287,8 @@ def test_window_override_is_used(flight, tmp_path):
     assert [(w.start_s, w.stop_s, w.reason) for w in split.ident] == [(4.0, 8.0, "given by the user")]
     assert math.isclose(split.holdout[0].start_s, log.excitation[0].start_s + 0.6 * log.excitation[0].duration_s,
                         abs_tol=0.01)
+    with pytest.raises(DataError, match="overlaps the held-out part"):
+        select_windows(log, rec, "rate_sp", "rate", override=[(4.0, 10.0)])
 
 
 def test_controller_at_another_rate_keeps_the_tustin_law():

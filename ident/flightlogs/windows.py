@@ -123,7 +123,8 @@ def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, ban
     ``min_power_fraction`` of the best window's and the mean coherence in the band is at least
     ``min_coherence``; kept windows less than ``window_s`` apart within one candidate interval are merged.
     The held-out part is returned whole, one window per candidate interval. ``override``: a list of
-    ``(start_s, stop_s)`` used as identification windows instead (the held-out part stays the same).
+    ``(start_s, stop_s)`` used as identification windows instead (the held-out part stays the same; a window
+    reaching into it is refused).
 
     Raises
     ------
@@ -140,6 +141,12 @@ def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, ban
     u, y = rec.data[u_name], rec.data[y_name]
     held = [Window(i.start_s, i.stop_s, f"held out: last {holdout:.0%} of the {kind} time") for i in held_iv]
     if override:
+        for a, b in override:
+            for h in held:
+                if a < h.stop_s and h.start_s < b:
+                    raise DataError(f"{log.path}: the window {a:g}-{b:g} s overlaps the held-out part "
+                                    f"{h.start_s:.2f}-{h.stop_s:.2f} s of the {rec.axis} axis; expected windows "
+                                    f"before it (or a smaller --holdout)")
         return Split([Window(float(a), float(b), "given by the user") for a, b in override], held)
     n_win = max(int(round(window_s / rec.dt)), 32)
     cands = []
