@@ -53,7 +53,7 @@ def autopilot_controller(log: FlightLog, axis: str):
                         f"controller of the {axis} axis needs it for the plant through the known controller") from None
 
 
-def identify_flight_log(path, out_dir, axes=AXES, *, windows=None, holdout: float = 0.4, rate_hz=None,
+def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: float = 0.4, rate_hz=None,
                         allow_truncated: bool = False, controller=autopilot_controller,
                         report: bool = True) -> FlightLogResult:
     """Identify every axis of ``axes`` in a flight log and write the results to ``out_dir``.
@@ -69,7 +69,9 @@ def identify_flight_log(path, out_dir, axes=AXES, *, windows=None, holdout: floa
     path : str or Path
         ``.ulg``, ``.bin``/``.log``, or a ulog2csv folder.
     out_dir : str or Path
-    axes : sequence of str
+    axes : sequence of str, optional
+        The axes to identify; each must be identifiable (else DataError). ``None``: every axis the log has with
+        excitation; an axis without is a note, and DataError only when none is left.
     windows : list of (start_s, stop_s), optional
         Identification windows instead of the automatic ones.
     holdout : float
@@ -96,6 +98,8 @@ def identify_flight_log(path, out_dir, axes=AXES, *, windows=None, holdout: floa
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     res = FlightLogResult(log)
+    strict = axes is not None
+    axes = list(axes) if strict else [a for a in AXES if a in log.axes]
     missing = [a for a in axes if a not in log.axes]
     if missing:
         raise DataError(f"{log.path}: no rate set-point and measured rate for {', '.join(missing)}; the log has "
@@ -104,8 +108,14 @@ def identify_flight_log(path, out_dir, axes=AXES, *, windows=None, holdout: floa
         names = ("rate_sp", "rate") + (("rate_out",) if "rate_out" in log.signals[axis] else ())
         rec = log.record(axis, names, rate_hz=rate_hz)
         models = {}
-        split_cl = select_windows(log, rec, "rate_sp", "rate", holdout=holdout, override=windows)
-        models["closed-loop"] = identify_direct(rec, split_cl, "closed-loop")
+        try:
+            split_cl = select_windows(log, rec, "rate_sp", "rate", holdout=holdout, override=windows)
+            models["closed-loop"] = identify_direct(rec, split_cl, "closed-loop")
+        except DataError as exc:
+            if strict:
+                raise
+            res.notes.append(f"{axis}: not identified: {exc}")
+            continue
         if "rate_out" in names:
             # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
             # does not excite enough is a note, not the end of the run
@@ -129,6 +139,8 @@ def identify_flight_log(path, out_dir, axes=AXES, *, windows=None, holdout: floa
             res.files.append(_save(save_model, out / f"{axis}-{kind}.json", m, log, rec))
         main = models.get("plant-indirect") or models.get("plant") or models["closed-loop"]
         res.files.append(_save(save_model, out / f"{axis}.json", main, log, rec))
+    if not res.models:
+        raise DataError(f"{log.path}: no axis could be identified: " + "; ".join(res.notes))
     if report:
         from .report import write_report
 

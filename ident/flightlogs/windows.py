@@ -16,7 +16,11 @@ from rotorlab.errors import DataError
 
 from .flightlog import FlightLog, Interval, Record
 
-__all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats"]
+__all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats", "MIN_RMS"]
+
+# The least excitation an input must carry in the band (RMS, its unit): 0.05 rad/s (3 deg/s) of rate set-point is
+# above what a hovering attitude loop commands from sensor noise and well below a pilot's stick input.
+MIN_RMS = {"rate_sp": 0.05}
 
 
 @dataclass(frozen=True)
@@ -115,13 +119,15 @@ def split_windows(log: FlightLog, rec: Record, holdout: float = 0.4) -> tuple[li
 
 def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, band_hz=(0.3, 15.0),
                    window_s: float = 4.0, min_coherence: float = 0.3, min_power_fraction: float = 0.01,
+                   min_rms=None,
                    holdout: float = 0.4, override=None) -> Split:
     """Identification and held-out windows of ``rec`` for the pair ``u_name -> y_name``.
 
     Automatic: the identification part of the candidate time (see :func:`split_windows`) is cut into windows
     of ``window_s`` (half overlapping); a window is kept when the input's power in ``band_hz`` is at least
     ``min_power_fraction`` of the best window's and the mean coherence in the band is at least
-    ``min_coherence``; kept windows less than ``window_s`` apart within one candidate interval are merged.
+    ``min_coherence`` and, where ``min_rms`` gives one for the input (default :data:`MIN_RMS`), the input's RMS in
+    the band reaches it; kept windows less than ``window_s`` apart within one candidate interval are merged.
     The held-out part is returned whole, one window per candidate interval. ``override``: a list of
     ``(start_s, stop_s)`` used as identification windows instead (the held-out part stays the same; a window
     reaching into it is refused).
@@ -163,14 +169,15 @@ def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, ban
                         f"part; expected a longer flight")
     stats = [band_stats(u[a:b], y[a:b], rec.dt, band) for a, b in cands]
     pmax = max(p for p, _ in stats)
+    floor = (MIN_RMS if min_rms is None else min_rms).get(u_name, 0.0) ** 2
     keep = [(a, b, p, c) for (a, b), (p, c) in zip(cands, stats)
-            if pmax > 0 and p >= min_power_fraction * pmax and c >= min_coherence]
+            if pmax > 0 and p >= max(min_power_fraction * pmax, floor) and c >= min_coherence]
     if not keep:
         best = max(stats, key=lambda s: s[1])
         raise DataError(f"{log.path}: no excitation on the {rec.axis} axis: no {window_s:g} s window of {u_name} -> "
-                        f"{y_name} with coherence >= {min_coherence} in {band[0]:g}-{band[1]:.3g} Hz (best: power "
-                        f"{best[0]:.3g}, coherence {best[1]:.2f}); fly stick inputs or an autotune/SYSID excitation, "
-                        "or give --window")
+                        f"{y_name} with coherence >= {min_coherence} and RMS >= {floor ** 0.5:g} in {band[0]:g}-"
+                        f"{band[1]:.3g} Hz (best coherence {best[1]:.2f}, at RMS {best[0] ** 0.5:.3g}); fly stick inputs "
+                        "or an autotune/SYSID excitation, or give --window")
     # kept windows closer than one window length are bridged: a short lull between stick inputs costs less
     # than cutting the record the subspace fit needs in two
     merged = []

@@ -18,7 +18,9 @@ def is_flight_log(path) -> bool:
 
 def add_arguments(p) -> None:
     g = p.add_argument_group("flight logs (FLIGHT.ulg, FLIGHT.bin/.log, ulog2csv folder; --out is a folder)")
-    g.add_argument("--axis", default="roll,pitch,yaw", help="axes to identify, comma-separated")
+    g.add_argument("--axis", default=None,
+                   help="axes to identify, comma-separated (each must be identifiable); default: every axis with "
+                        "excitation")
     g.add_argument("--window", action="append", default=[], metavar="START:STOP",
                    help="identification window in s of the log's time (repeatable); default: chosen automatically")
     g.add_argument("--holdout", type=float, default=0.4,
@@ -48,10 +50,12 @@ def run_flight_log(args) -> int:
     from rotorlab.ident.flightlogs.names import AXES
     from rotorlab.ident.flightlogs.run import identify_flight_log
 
-    axes = [a.strip() for a in args.axis.split(",") if a.strip()]
-    bad = [a for a in axes if a not in AXES]
-    if bad or not axes:
-        raise CLIError(f"--axis: expected some of {', '.join(AXES)}, got {args.axis!r}")
+    axes = None
+    if args.axis is not None:
+        axes = [a.strip() for a in args.axis.split(",") if a.strip()]
+        bad = [a for a in axes if a not in AXES]
+        if bad or not axes:
+            raise CLIError(f"--axis: expected some of {', '.join(AXES)}, got {args.axis!r}")
     if not 0 < args.holdout < 1:
         raise CLIError(f"--holdout must be in (0, 1), got {args.holdout}")
     if args.rate_hz is not None and not args.rate_hz > 0:
