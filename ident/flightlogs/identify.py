@@ -188,9 +188,9 @@ def _delay(u, y, max_delay: int = 10) -> int:
 def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candidates=None) -> AxisModel:
     """Identify ``kind`` (closed-loop: rate_sp -> rate; plant: rate_out -> rate) of one axis.
 
-    Every candidate of ``candidates`` (default ``CANDIDATES[kind]``), at the estimated input delay and the two
-    below it (the estimate reads the first significant lag, which a slow axis pushes late), is fitted on the
-    first 75 % of the longest identification window and scored on the rest
+    Every candidate of ``candidates`` (default ``CANDIDATES[kind]``), at the estimated input delay, the two
+    below it and none (the estimate reads the first significant lag, which a slow axis pushes late), is fitted on
+    the first 75 % of the longest identification window and scored on the rest
     of the identification windows; candidates with a pole outside the unit circle (on it for a plant, which
     may integrate) are dropped; the best is refitted on all identification windows joined (each about its mean)
     and scored on the held-out windows.
@@ -219,7 +219,7 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
     delay = _delay(uf, yf)
     tried, best = [], None
     for name, settings in candidates if candidates is not None else CANDIDATES[kind]:
-        for d in range(delay, max(delay - 3, -1), -1):
+        for d in sorted({delay, max(delay - 1, 0), max(delay - 2, 0), 0}, reverse=True):
             label = f"{name} " + " ".join(f"{a}={b}" for a, b in settings.items()) + f" delay={d}"
             try:
                 m = _fit(name, uf, yf, rec.dt, d, settings)
