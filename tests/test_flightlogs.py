@@ -388,3 +388,27 @@ def test_dataflash_millisecond_stamps_are_seconds(tmp_path):
                                                                   "YDes", "Y", "YOut"], rows)})
     s = read_flight_log(tmp_path / "ms.bin").series("roll", "rate")
     np.testing.assert_allclose(s.t_s, (1000 + 4 * np.arange(N)) * 1e-3)
+
+
+@pytest.mark.parametrize("fmt", ["ulog", "dataflash"])
+def test_damaged_logs_read_or_raise_data_error(fmt, flight, tmp_path):
+    """Cut and byte-flipped copies of a log: each reads (pyulog and DFReader skip damaged messages) or raises
+    DataError; nothing else escapes to the command line."""
+    data = bytearray(_write(fmt, flight, tmp_path).read_bytes())
+    rng = np.random.default_rng(7)
+    outcomes = set()
+    for trial in range(6):
+        d = bytearray(data)
+        if trial % 3 == 0:
+            d = d[: int(rng.integers(0, len(d)))]
+        else:
+            for i in rng.integers(0, len(d), int(rng.integers(1, 50))):
+                d[int(i)] = int(rng.integers(0, 256))
+        path = tmp_path / f"damaged{trial}{'.ulg' if fmt == 'ulog' else '.bin'}"
+        path.write_bytes(bytes(d))
+        try:
+            read_flight_log(path, **({"allow_truncated": True} if fmt == "ulog" else {}))
+            outcomes.add("read")
+        except DataError:
+            outcomes.add("DataError")
+    assert outcomes == {"read", "DataError"}

@@ -70,13 +70,18 @@ def read_ulog(path, *, allow_truncated: bool = False) -> FlightLog:
         ulog = ULog(str(path))
     except (ULogException, ValueError, struct.error, KeyError, IndexError) as exc:
         raise DataError(f"{path}: pyulog cannot parse it: {exc}") from None
-    topics = {}
+    topics, broken = {}, []
     for d in sorted(ulog.data_list, key=lambda d: d.multi_id):
+        if "timestamp" not in d.data:  # a format message damaged in the file
+            broken.append(d.name)
+            continue
         topics.setdefault(d.name, d.data)
     version = release_string(ulog.msg_info_dict.get("ver_sw_release"))
     log = build_px4(topics, ulog.initial_parameters, str(path), "ulog", version)
     if cut is not None:
         log.notes.append(f"truncated at byte {cut}: read up to the last whole message")
+    if broken:
+        log.notes.append(f"topics without a timestamp field skipped (damaged format): {', '.join(sorted(broken))}")
     if ulog.file_corruption:
         log.notes.append("pyulog reported corrupt bytes and skipped them")
     return log
