@@ -216,8 +216,8 @@ def test_simulated_flight_recovers_every_axis_plant(fmt, axes, flight, tmp_path)
 
         assert K == pytest.approx(PLANTS[axis][0], rel=0.03) and tau == pytest.approx(PLANTS[axis][1], rel=0.05)
         assert indirect.vaf_holdout > 95
-        # the direct route (PBSID on the closed-loop record) lands near it too
-        assert nugap(direct.model.with_delay(), truth) < 0.1, axis
+        # and so is it directly (PBSID on the closed-loop record of the rate-loop output)
+        assert nugap(direct.model.with_delay(), truth) < 0.05, axis
 
 
 def test_hand_written_pid_lti_equals_its_step():

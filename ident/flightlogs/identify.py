@@ -26,7 +26,7 @@ from ..model import IdentifiedModel
 from .flightlog import Record
 from .windows import Split
 
-__all__ = ["AxisModel", "CANDIDATES", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
+__all__ = ["AxisModel", "CANDIDATES", "FALLBACK", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
            "controller_at", "holdout_prediction", "window_runs"]
 
 # (method, settings) tried by the direct fits, per kind. Orders 2-4 cover a rate loop (integrator, motor lag,
@@ -44,11 +44,17 @@ CANDIDATES = {
         ("arx", {"na": 4, "nb": 4}),
     ),
     "plant": (
-        ("pbsid", {"order": 2, "past": 20, "future": 10}),
-        ("pbsid", {"order": 4, "past": 20, "future": 10}),
         ("pbsid", {"order": 2, "past": 40, "future": 20}),
         ("pbsid", {"order": 3, "past": 40, "future": 20}),
         ("pbsid", {"order": 4, "past": 40, "future": 20}),
+    ),
+}
+# tried when no candidate of CANDIDATES fits (windows too short for PBSID's 40-sample past)
+FALLBACK = {
+    "closed-loop": (),
+    "plant": (
+        ("pbsid", {"order": 2, "past": 20, "future": 10}),
+        ("pbsid", {"order": 4, "past": 20, "future": 10}),
     ),
 }
 MIN_SAMPLES = 100
@@ -178,19 +184,19 @@ def _fit(name, u, y, dt, delay, settings):
     return METHODS[name].fit(u, y, dt=dt, delay=delay, **settings)
 
 
-def _delay(u, y, max_delay: int = 10) -> int:
+def _delay(u, y, max_delay: int = 10) -> int | None:
     try:
         return estimate_delay(u, y, max_delay)
     except DataError:
-        return 2  # no significant lag found: the candidates then try delays 2, 1 and 0
+        return None  # no significant lag found
 
 
 def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candidates=None) -> AxisModel:
     """Identify ``kind`` (closed-loop: rate_sp -> rate; plant: rate_out -> rate) of one axis.
 
-    Every candidate of ``candidates`` (default ``CANDIDATES[kind]``), at the estimated input delay, the two
-    below it and none (the estimate reads the first significant lag, which a slow axis pushes late), is fitted on
-    the first 75 % of the longest identification window and scored on the rest
+    Every candidate of ``candidates`` (default ``CANDIDATES[kind]``, then ``FALLBACK[kind]`` if none fits), at
+    the estimated input delay (the closed loop also at the two delays below it and none), is fitted on the first
+    75 % of the longest identification window and scored on the rest
     of the identification windows; candidates with a pole outside the unit circle (on it for a plant, which
     may integrate) are dropped; the best is refitted on all identification windows joined (each about its mean)
     and scored on the held-out windows.
@@ -218,8 +224,20 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
     uf, yf = _centred(u, fit_idx), _centred(y, fit_idx)
     delay = _delay(uf, yf)
     tried, best = [], None
-    for name, settings in candidates if candidates is not None else CANDIDATES[kind]:
-        for d in sorted({delay, max(delay - 1, 0), max(delay - 2, 0), 0}, reverse=True):
+    sets = [candidates] if candidates is not None else [CANDIDATES[kind], FALLBACK[kind]]
+    # the closed loop also at the two delays below the estimate and none: a slow axis (yaw) pushes the first
+    # significant lag late, and a loop logged slower than it runs answers within a sample. The plant keeps the
+    # estimate: its first Markov parameter is what estimate_delay reads, and a shorter delay lets a low order
+    # trade dynamics for it
+    if kind == "closed-loop":
+        d = 2 if delay is None else delay
+        delays = sorted({d, max(d - 1, 0), max(d - 2, 0), 0}, reverse=True)
+    else:
+        delays = [delay or 0]
+    for name, settings in (c for cs in sets for c in cs):
+        if best is not None and candidates is None and (name, settings) in FALLBACK[kind]:
+            break
+        for d in delays:
             label = f"{name} " + " ".join(f"{a}={b}" for a, b in settings.items()) + f" delay={d}"
             try:
                 m = _fit(name, uf, yf, rec.dt, d, settings)
