@@ -412,3 +412,13 @@ def test_damaged_logs_read_or_raise_data_error(fmt, flight, tmp_path):
         except DataError:
             outcomes.add("DataError")
     assert outcomes == {"read", "DataError"}
+
+
+def test_raw_gyro_on_a_rotated_board_is_refused(tmp_path):
+    topics = {"vehicle_rates_setpoint": {"timestamp": T_US, **{a: np.zeros(N, np.float32) for a in AXES}},
+              "sensor_gyro": {"timestamp": T_US, **{f: np.zeros(N, np.float32) for f in ("x", "y", "z")}}}
+    write_ulog(tmp_path / "ok.ulg", topics, {"SENS_BOARD_ROT": 0})
+    assert read_flight_log(tmp_path / "ok.ulg").series("roll", "rate").source.startswith("sensor_gyro.x")
+    write_ulog(tmp_path / "rot.ulg", topics, {"SENS_BOARD_ROT": 2})
+    with pytest.raises(DataError, match="SENS_BOARD_ROT = 2"):
+        read_flight_log(tmp_path / "rot.ulg")

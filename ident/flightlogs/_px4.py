@@ -52,6 +52,12 @@ def build_px4(topics: dict, params: dict, path: str, fmt: str, version: str = ""
             if row is not rows_for("px4", signal)[0]:
                 log.notes.append(f"{signal} from {row.topic} ({row.versions})")
             break
+    rate = log.signals["roll"].get("rate")
+    if rate is not None and rate.source.startswith("sensor_gyro.") and params.get("SENS_BOARD_ROT", 0) != 0:
+        # the raw gyro topic is in the sensor's frame; a rotated board swaps or flips its axes
+        raise DataError(f"{path}: the measured rate comes from sensor_gyro (sensor frame) and SENS_BOARD_ROT = "
+                        f"{params['SENS_BOARD_ROT']}; expected SENS_BOARD_ROT = 0 (no board rotation) or a body-frame "
+                        "rate topic (vehicle_angular_velocity, sensor_combined)")
     if not log.axes:
         missing = [s for s in ("rate_sp", "rate") if s not in log.signals["roll"]]
         looked = "; ".join(f"{s}: " + ", ".join(f"{r.topic}.{r.fields[0]}" for r in rows_for("px4", s))
