@@ -15,7 +15,7 @@ from scipy import signal as sig
 
 from rotorlab.errors import DataError
 
-from .names import AXES, SIGNAL_UNITS
+from .names import AXES
 
 __all__ = ["Series", "Interval", "FlightLog", "Record", "time_base_s", "quat_to_euler", "TIME_UNITS"]
 
@@ -194,12 +194,6 @@ class Record:
     def __len__(self) -> int:
         return len(self.t_s)
 
-    def slice_time(self, start_s: float, stop_s: float) -> Record:
-        """The samples with ``start_s <= t < stop_s``."""
-        m = (self.t_s >= start_s) & (self.t_s < stop_s)
-        return Record(self.axis, self.t_s[m], self.dt, {k: v[m] for k, v in self.data.items()}, self.units,
-                      self.sources)
-
 
 @dataclass
 class FlightLog:
@@ -253,10 +247,6 @@ class FlightLog:
     def axes(self) -> list[str]:
         """Axes with a rate set-point and a measured rate."""
         return [a for a in AXES if {"rate_sp", "rate"} <= set(self.signals[a])]
-
-    @property
-    def units(self) -> dict:
-        return dict(SIGNAL_UNITS)
 
     def series(self, axis: str, name: str) -> Series:
         """The signal ``name`` of ``axis``; DataError naming what the log lacks."""
