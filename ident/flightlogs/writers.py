@@ -35,7 +35,7 @@ def ulog_field_type(values) -> str:
 
 
 def write_ulog(path, topics: dict, params: dict | None = None, info: dict | None = None) -> Path:
-    """Write a ULog file with pyulog's writer (``ULog.write_ulog``, pyulog >= 1.1).
+    """Write a ULog file with pyulog's writer (``ULog.write_ulog``, pyulog >= 1.3).
 
     pyulog writes back logs it has read and has no constructor for a new one, so an empty log (header and
     flag bits only) is parsed and its format, subscription and data tables filled the way pyulog's own parser
