@@ -7,6 +7,10 @@ past-input instruments), pbsid (predictor-based, for closed-loop data), lms-kung
 realisation), oe-greybox (output-error grey-box fit of --structure) and hinf-match (H-inf matching of
 --structure to a PI-MOESP model). The LOG is a rotorlab Parquet log or a CSV file with a
 header row; --column-map renames CSV columns, --resample interpolates uneven time stamps.
+
+A flight log (PX4 .ulg, a ulog2csv folder, ArduPilot .bin/.log) is identified per axis instead: the closed loop
+(rate set-point -> rate), the plant (rate-loop output -> rate) and the plant through the autopilot's controller,
+with one model file per axis and report.html written into the --out folder (docs/flight-logs.md).
 """
 
 from __future__ import annotations
@@ -26,14 +30,16 @@ STRUCTURES = ("rate-tf", "rigid-rig", "pitch")
 
 def add_parser(sub):
     p = sub.add_parser("ident", help="identify a model from a log and write it as JSON", **describe(__doc__))
-    p.add_argument("log", help="Parquet log (rotorlab format) or CSV with a 't' column (see --column-map)")
+    p.add_argument("log", help="Parquet log (rotorlab format), CSV with a 't' column (see --column-map), or a flight "
+                               "log: FLIGHT.ulg, FLIGHT.bin/.log or a ulog2csv folder")
     # checked in run() against rotorlab.ident.methods.METHODS, the table the pipeline uses: importing it here
     # would load the identification stack before every command
-    p.add_argument("--method", required=True,
+    # --method/--input/--output are required for Parquet/CSV logs (checked in run()); a flight log needs none
+    p.add_argument("--method",
                    help="identification method of rotorlab.ident.methods (pi-moesp, pbsid, lms-kung, oe-greybox, "
                         "hinf-match)")
-    p.add_argument("--input", required=True, help="input column(s), comma-separated")
-    p.add_argument("--output", required=True, help="output column(s), comma-separated")
+    p.add_argument("--input", help="input column(s), comma-separated")
+    p.add_argument("--output", help="output column(s), comma-separated")
     p.add_argument("--order", type=positive_int, default=4, help="model order (black-box methods)")
     p.add_argument("--horizon", type=positive_int, default=40, help="PI-MOESP block rows p (40 as published)")
     p.add_argument("--past", type=positive_int, default=11, help="PBSID past window, samples (11 as published)")
@@ -50,7 +56,10 @@ def add_parser(sub):
     cv = p.add_mutually_exclusive_group()
     cv.add_argument("--cv-log", help="separate cross-validation log")
     cv.add_argument("--cv-split", type=float, help="fraction of LOG used to identify; the rest cross-validates")
-    p.add_argument("--out", required=True, help="model JSON to write")
+    p.add_argument("--out", required=True, help="model JSON to write (a folder for a flight log)")
+    from rotorlab.commands.ident_flightlog import add_arguments
+
+    add_arguments(p)
     return p
 
 
@@ -102,11 +111,17 @@ def _identify(args, u, y, dt, delay):
 
 def run(args) -> int:
     from rotorlab.atomic import check_writable_dir
+    from rotorlab.commands.ident_flightlog import is_flight_log, run_flight_log
     from rotorlab.ident.logs import check_identifiable, load_log
     from rotorlab.ident.methods import get_method
     from rotorlab.ident.metrics import simulate, vaf
     from rotorlab.ident.modelio import save_model
 
+    if is_flight_log(args.log):
+        return run_flight_log(args)
+    missing = [f"--{k}" for k in ("method", "input", "output") if getattr(args, k) is None]
+    if missing:
+        raise CLIError(f"the following arguments are required for a Parquet or CSV log: {', '.join(missing)}")
     check_writable_dir(Path(args.out).parent, "folder of --out")
 
     try:

@@ -1,0 +1,161 @@
+"""A flight log end to end: read, pick windows, identify every asked axis, write one model file per axis and
+the log report. ``rotorlab ident FLIGHT.ulg|FLIGHT.bin|CSV_DIR`` calls :func:`identify_flight_log`."""
+
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rotorlab.errors import DataError
+
+from . import read_flight_log
+from .flightlog import FlightLog
+from .identify import AxisModel, identify_direct, identify_plant_indirect
+from .names import AXES
+from .windows import select_windows
+
+__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller"]
+
+
+@dataclass
+class FlightLogResult:
+    """What :func:`identify_flight_log` found: the log, per axis its models, the files written, and notes
+    (skipped models and why)."""
+
+    log: FlightLog
+    models: dict = field(default_factory=dict)
+    files: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+
+
+def autopilot_controller(log: FlightLog, axis: str):
+    """The autopilot's rate controller of ``axis`` from the log's parameters, as a python-control LTI system at the
+    loop rate, from ``rotorlab.autopilots`` (``get(autopilot).rate_controller_lti``); ``None`` where that package
+    is not installed. The logged rate has been through the gyro filter already (``gyro_filter=False``).
+
+    Raises
+    ------
+    DataError
+        A parameter the controller law needs is not in the log.
+    """
+    if importlib.util.find_spec("rotorlab.autopilots") is None:
+        return None
+    from rotorlab import autopilots
+
+    ap = autopilots.get(log.autopilot)
+    try:
+        return ap.rate_controller_lti(log.params, axis, 1.0 / ap.loop_hz(log.params), gyro_filter=False)
+    except KeyError as exc:
+        raise DataError(f"{log.path}: parameter {exc.args[0]} is not in the log; the {log.autopilot} rate "
+                        f"controller of the {axis} axis needs it for the plant through the known controller") from None
+
+
+def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: float = 0.4, rate_hz=None,
+                        allow_truncated: bool = False, controller=autopilot_controller,
+                        report: bool = True) -> FlightLogResult:
+    """Identify every axis of ``axes`` in a flight log and write the results to ``out_dir``.
+
+    Per axis: the closed loop (rate_sp -> rate), the plant (rate_out -> rate) where the log has the rate-loop
+    output, and the plant through the known controller where ``controller(log, axis)`` gives one. An axis whose
+    closed loop cannot be identified ends the run (DataError); a plant model that cannot be fitted is a note. Files:
+    ``<axis>.json`` (the plant: through the controller where known, else direct; else the closed loop), one
+    ``<axis>-<kind>.json`` per model, and ``report.html`` with its PNGs. Units are recorded in every model file.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.ulg``, ``.bin``/``.log``, or a ulog2csv folder.
+    out_dir : str or Path
+    axes : sequence of str, optional
+        The axes to identify; each must be identifiable (else DataError). ``None``: every axis the log has with
+        excitation; an axis without is a note, and DataError only when none is left.
+    windows : list of (start_s, stop_s), optional
+        Identification windows instead of the automatic ones.
+    holdout : float
+        Fraction of the airborne (or excitation) time held out at its end to score the models.
+    rate_hz : float, optional
+        Identification rate (default: the slowest signal of each record).
+    controller : callable or None
+        ``controller(log, axis) -> LTI or None``.
+
+    Raises
+    ------
+    DataError
+        A log that cannot be read or identified (what is missing is in the message).
+
+    Examples
+    --------
+    >>> res = identify_flight_log("flight.ulg", "models/")  # doctest: +SKIP
+    >>> res.models["roll"]["closed-loop"].vaf_holdout  # doctest: +SKIP
+    """
+    from rotorlab.ident.modelio import save_model
+
+    kwargs = {"allow_truncated": True} if allow_truncated else {}
+    log = read_flight_log(path, **kwargs)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    res = FlightLogResult(log)
+    strict = axes is not None
+    axes = list(axes) if strict else [a for a in AXES if a in log.axes]
+    missing = [a for a in axes if a not in log.axes]
+    if missing:
+        raise DataError(f"{log.path}: no rate set-point and measured rate for {', '.join(missing)}; the log has "
+                        f"{', '.join(log.axes) or 'none'}")
+    for axis in axes:
+        names = ("rate_sp", "rate") + (("rate_out",) if "rate_out" in log.signals[axis] else ())
+        rec = log.record(axis, names, rate_hz=rate_hz)
+        models = {}
+        try:
+            split_cl = select_windows(log, rec, "rate_sp", "rate", holdout=holdout, override=windows)
+            models["closed-loop"] = identify_direct(rec, split_cl, "closed-loop")
+        except DataError as exc:
+            if strict:
+                raise
+            res.notes.append(f"{axis}: not identified: {exc}")
+            continue
+        if "rate_out" in names:
+            # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
+            # does not excite enough is a note, not the end of the run
+            try:
+                split_p = select_windows(log, rec, "rate_out", "rate", holdout=holdout, override=windows)
+                models["plant"] = identify_direct(rec, split_p, "plant")
+            except DataError as exc:
+                res.notes.append(f"{axis}: no direct plant model: {exc}")
+        else:
+            res.notes.append(f"{axis}: no rate-loop output in the log: plant only through the controller")
+        C = controller(log, axis) if controller is not None else None
+        if C is not None:
+            try:
+                models["plant-indirect"] = identify_plant_indirect(rec, split_cl, C)
+            except (DataError, ValueError) as exc:
+                res.notes.append(f"{axis}: no plant through the controller: {exc}")
+        else:
+            res.notes.append(f"{axis}: plant through the known controller skipped (rotorlab.autopilots not installed)")
+        res.models[axis] = models
+        for kind, m in models.items():
+            res.files.append(_save(save_model, out / f"{axis}-{kind}.json", m, log, rec))
+        main = models.get("plant-indirect") or models.get("plant") or models["closed-loop"]
+        res.files.append(_save(save_model, out / f"{axis}.json", main, log, rec))
+    if not res.models:
+        raise DataError(f"{log.path}: no axis could be identified: " + "; ".join(res.notes))
+    if report:
+        from .report import write_report
+
+        res.files += write_report(res, out)
+    return res
+
+
+def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
+    extra = {"log": log.path, "format": log.format, "autopilot": log.autopilot, "version": log.version,
+             "axis": m.axis, "kind": m.kind, "sources": {k: rec.sources[k] for k in (m.input, m.output)
+                                                          if k in rec.sources},
+             "time_base": "s (log stamps converted from microseconds)",
+             "windows": [[w.start_s, w.stop_s, w.reason] for w in m.split.ident],
+             "holdout": [[w.start_s, w.stop_s] for w in m.split.holdout],
+             "vaf_holdout": m.vaf_holdout, "tried": [[t, None if np.isnan(v) else v] for t, v in m.tried],
+             **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {})}
+    return save_model(path, m.model, vaf=[m.vaf_holdout], extra=extra, input=[m.input], output=[m.output],
+                      units=dict(m.units))

@@ -1,0 +1,197 @@
+"""Informative windows of a flight log: airborne, excited in the band that matters, or given by the user.
+
+Every :class:`Window` carries the reason it was chosen, for the log report. The held-out part (the last
+``holdout`` fraction of the candidate time: the autopilot's excitation windows when it logged any, else the
+airborne time) is never searched for identification windows, so a model's VAF on it is an honest prediction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal as sig
+
+from rotorlab.errors import DataError
+
+from .flightlog import FlightLog, Interval, Record
+
+__all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats", "MIN_RMS"]
+
+# The least excitation an input must carry in the band (RMS, its unit): 0.05 rad/s (3 deg/s) of rate set-point is
+# above what a hovering attitude loop commands from sensor noise and well below a pilot's stick input.
+MIN_RMS = {"rate_sp": 0.05}
+
+
+@dataclass(frozen=True)
+class Window:
+    """A time window ``[start_s, stop_s)`` with why it was chosen and its excitation figures.
+
+    ``power`` is the input's mean power in the band (unit^2), ``coherence`` the mean magnitude-squared
+    coherence input -> output in the band (NaN where not computed, e.g. a user's window)."""
+
+    start_s: float
+    stop_s: float
+    reason: str
+    power: float = float("nan")
+    coherence: float = float("nan")
+
+    @property
+    def duration_s(self) -> float:
+        return self.stop_s - self.start_s
+
+
+@dataclass(frozen=True)
+class Split:
+    """Identification windows and held-out windows of one record."""
+
+    ident: list
+    holdout: list
+
+
+def band_stats(u, y, dt: float, band_hz) -> tuple[float, float]:
+    """(input power in band, mean coherence u -> y in band) by Welch's method (``scipy.signal``), segments of
+    about 1 s.
+
+    Examples
+    --------
+    >>> u = np.random.default_rng(0).standard_normal(2000)
+    >>> power, coherence = band_stats(u, 2 * u, 0.01, (0.5, 20.0))
+    >>> round(coherence, 6)
+    1.0
+    """
+    fs = 1.0 / dt
+    nper = int(min(len(u), max(32, round(fs))))
+    f, puu = sig.welch(u, fs=fs, nperseg=nper, detrend="linear")
+    m = (f >= band_hz[0]) & (f <= band_hz[1])
+    if not m.any():
+        return 0.0, 0.0
+    power = float(np.trapezoid(puu[m], f[m]))
+    if not np.std(u) > 0 or not np.std(y) > 0:
+        return power, 0.0
+    _, cxy = sig.coherence(u, y, fs=fs, nperseg=nper, detrend="linear")
+    return power, float(np.nanmean(cxy[m]))
+
+
+def _clip(intervals, start, stop):
+    out = []
+    for i in intervals:
+        lo, hi = max(i.start_s, start), min(i.stop_s, stop)
+        if hi > lo:
+            out.append(Interval(lo, hi, i.label))
+    return out
+
+
+def _candidates(log: FlightLog, rec: Record) -> tuple[list, str]:
+    if not log.airborne:
+        how = log.airborne_source or "no land detector, thrust or armed signal in the log"
+        raise DataError(f"{log.path}: no airborne time found ({how}); expected a flight, got a log on the ground")
+    air = _clip(log.airborne, rec.t_s[0], rec.t_s[-1] + rec.dt)
+    if not air:
+        raise DataError(f"{log.path}: the {rec.axis} signals do not overlap the airborne time "
+                        f"({', '.join(f'{i.start_s:.1f}-{i.stop_s:.1f} s' for i in log.airborne)})")
+    exc = [i for i in log.excitation if i.label == rec.axis]
+    exc_air = [j for i in exc for j in _clip(air, i.start_s, i.stop_s)]
+    if exc_air:
+        return exc_air, "autopilot excitation window (airborne)"
+    return air, "airborne"
+
+
+def _same_interval(intervals, t0, t1) -> bool:
+    return any(i.start_s <= t0 and t1 <= i.stop_s for i in intervals)
+
+
+def split_windows(log: FlightLog, rec: Record, holdout: float = 0.4) -> tuple[list, list, str]:
+    """(identification candidates, held-out intervals, kind): the last ``holdout`` fraction of the candidate
+    time (excitation windows, else airborne) is held out, split on the time axis."""
+    cands, kind = _candidates(log, rec)
+    total = sum(i.duration_s for i in cands)
+    t_cut, acc = None, 0.0
+    for i in cands:
+        if acc + i.duration_s >= (1 - holdout) * total:
+            t_cut = i.start_s + (1 - holdout) * total - acc
+            break
+        acc += i.duration_s
+    ident = [j for i in cands for j in _clip([i], i.start_s, t_cut)]
+    held = [j for i in cands for j in _clip([i], t_cut, i.stop_s)]
+    return ident, held, kind
+
+
+def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, band_hz=(0.3, 15.0),
+                   window_s: float = 4.0, min_coherence: float = 0.3, min_power_fraction: float = 0.01,
+                   min_rms=None,
+                   holdout: float = 0.4, override=None) -> Split:
+    """Identification and held-out windows of ``rec`` for the pair ``u_name -> y_name``.
+
+    Automatic: the identification part of the candidate time (see :func:`split_windows`) is cut into windows
+    of ``window_s`` (half overlapping); a window is kept when the input's power in ``band_hz`` is at least
+    ``min_power_fraction`` of the best window's and the mean coherence in the band is at least
+    ``min_coherence`` and, where ``min_rms`` gives one for the input (default :data:`MIN_RMS`), the input's RMS in
+    the band reaches it; kept windows less than ``window_s`` apart within one candidate interval are merged.
+    The held-out part is returned whole, one window per candidate interval. ``override``: a list of
+    ``(start_s, stop_s)`` used as identification windows instead (the held-out part stays the same; a window
+    reaching into it is refused).
+
+    Raises
+    ------
+    DataError
+        No airborne time, or no window with excitation in the band.
+
+    Examples
+    --------
+    >>> split = select_windows(log, log.record("roll", ("rate_sp", "rate")), "rate_sp", "rate")  # doctest: +SKIP
+    >>> [w.reason for w in split.ident]  # doctest: +SKIP
+    """
+    band = (band_hz[0], min(band_hz[1], 0.4 / rec.dt))
+    ident_iv, held_iv, kind = split_windows(log, rec, holdout)
+    u, y = rec.data[u_name], rec.data[y_name]
+    held = [Window(i.start_s, i.stop_s, f"held out: last {holdout:.0%} of the {kind} time") for i in held_iv]
+    if override:
+        for a, b in override:
+            for h in held:
+                if a < h.stop_s and h.start_s < b:
+                    raise DataError(f"{log.path}: the window {a:g}-{b:g} s overlaps the held-out part "
+                                    f"{h.start_s:.2f}-{h.stop_s:.2f} s of the {rec.axis} axis; expected windows "
+                                    f"before it (or a smaller --holdout)")
+        return Split([Window(float(a), float(b), "given by the user") for a, b in override], held)
+    n_win = max(int(round(window_s / rec.dt)), 32)
+    cands = []
+    for iv in ident_iv:
+        idx = np.flatnonzero((rec.t_s >= iv.start_s) & (rec.t_s < iv.stop_s))
+        if len(idx) < n_win:
+            if len(idx) >= 32:
+                cands.append((idx[0], idx[-1] + 1))
+            continue
+        starts = list(range(idx[0], idx[-1] + 2 - n_win, n_win // 2))
+        cands += [(s, s + n_win) for s in starts]
+    if not cands:
+        raise DataError(f"{log.path}: the {rec.axis} axis has no {kind} stretch of {window_s:g} s before the held-out "
+                        f"part; expected a longer flight")
+    stats = [band_stats(u[a:b], y[a:b], rec.dt, band) for a, b in cands]
+    pmax = max(p for p, _ in stats)
+    floor = (MIN_RMS if min_rms is None else min_rms).get(u_name, 0.0) ** 2
+    keep = [(a, b, p, c) for (a, b), (p, c) in zip(cands, stats)
+            if pmax > 0 and p >= max(min_power_fraction * pmax, floor) and c >= min_coherence]
+    if not keep:
+        best = max(stats, key=lambda s: s[1])
+        raise DataError(f"{log.path}: no excitation on the {rec.axis} axis: no {window_s:g} s window of {u_name} -> "
+                        f"{y_name} with coherence >= {min_coherence} and RMS >= {floor ** 0.5:g} in {band[0]:g}-"
+                        f"{band[1]:.3g} Hz (best coherence {best[1]:.2f}, at RMS {best[0] ** 0.5:.3g}); fly stick inputs "
+                        "or an autotune/SYSID excitation, or give --window")
+    # kept windows closer than one window length are bridged: a short lull between stick inputs costs less
+    # than cutting the record the subspace fit needs in two
+    merged = []
+    for a, b, p, c in keep:
+        if merged and a <= merged[-1][1] + n_win and _same_interval(ident_iv, rec.t_s[merged[-1][0]], rec.t_s[b - 1]):
+            m = merged[-1]
+            merged[-1] = (m[0], b, m[2] + [p], m[3] + [c])
+        else:
+            merged.append((a, b, [p], [c]))
+    out = []
+    for a, b, ps, cs in merged:
+        p, c = float(np.mean(ps)), float(np.mean(cs))
+        out.append(Window(float(rec.t_s[a]), float(rec.t_s[b - 1] + rec.dt),
+                          f"{kind}; {u_name} power {p:.3g} in {band[0]:g}-{band[1]:.3g} Hz "
+                          f"(>= {min_power_fraction:.0%} of the best window), coherence {c:.2f} >= {min_coherence}",
+                          p, c))
+    return Split(out, held)
