@@ -245,6 +245,13 @@ class VehicleSpec:
         the same values bit for bit: the simulator writes them every tick, where numpy's per-call cost on four
         rotors is several times the arithmetic. The clip, the affine map and the square are the same IEEE
         operations in floats; the power stays numpy's (its SIMD kernel may round differently from libm's ``pow``).
+
+        Examples
+        --------
+        >>> from rotorlab.vehicles import load_vehicle
+        >>> v = load_vehicle("tuhh-quad")
+        >>> v.command_to_ctrl_floats([50.0, 120.0]) == v.command_to_ctrl([50.0, 120.0]).tolist()
+        True
         """
         k = self.ctrl_per_pct
         if k is not None:

@@ -168,7 +168,15 @@ class AutopilotController:
         """One tick from floats: attitude and its set-point (deg), gyro (deg/s) and, with :attr:`add_commands`,
         the commands to add (%). Returns ``(u_lat, u_lon, u_yaw, p_ref, q_ref, r_ref)`` (%, deg/s).
         :class:`~rotorlab.sim.control.flight_software.FlightSoftware` calls it directly when the autopilot is its
-        only plug-in, so a tick gathers and builds no dict for it."""
+        only plug-in, so a tick gathers and builds no dict for it.
+
+        Examples
+        --------
+        >>> ctl = AutopilotController(AutopilotSpec.from_params("px4"), 1 / 250)
+        >>> u_lat, u_lon, u_yaw, p_ref, q_ref, r_ref = ctl.fly(0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        >>> round(p_ref, 3), round(u_lat, 3)  # MC_ROLL_P = 4: 4 deg/s; MC_ROLLRATE_P = 0.15 per rad/s: 1.047 %
+        (4.0, 1.047)
+        """
         # plain floats throughout: it runs every tick
         if self.rate_reference is not None:
             rate_sp = tuple(float(v) * _D2R for v in self.rate_reference(t))
