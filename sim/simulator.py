@@ -135,11 +135,10 @@ def set_rotor_ctrl(ctrl, rotor_pct, vehicle, thrust, spinup) -> None:
     spin-up twins (same control; None: none): one simulation (``ctrl (nu,)``, ``rotor_pct`` a sequence
     ``(n_rotors,)``) or a row per simulation (``(n, nu)``, ``(n, n_rotors)``, the batched runner). ``thrust``,
     ``spinup``: ids or :func:`strided` slices."""
-    k = vehicle.ctrl_per_pct
-    if k is not None and ctrl.ndim == 1:
-        # one simulation under a linear command map (variable pitch), every tick: command_to_ctrl's product in
-        # floats, one store per actuator group (numpy costs several times more for four rotors)
-        c = [v * k for v in rotor_pct]
+    if ctrl.ndim == 1:
+        # one simulation, every tick: command_to_ctrl in floats, one store per actuator group (numpy costs several
+        # times more for four rotors)
+        c = vehicle.command_to_ctrl_floats(rotor_pct)
         ctrl[thrust] = c
         if spinup is not None:
             ctrl[spinup] = c

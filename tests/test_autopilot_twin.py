@@ -136,6 +136,40 @@ def test_with_the_autopilot_flying_the_cascade_is_off_and_command_excitation_sti
     assert runs[True] == 0.0 and runs[False] == pytest.approx(7.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_an_autopilot_alone_is_flown_on_floats_as_the_plugin_protocol_flies_it(autopilot):
+    """The flight software calls the autopilot's fly() with floats when it is the only plug-in; beside another
+    plug-in it goes through step() and the signal dict. Both give the same commands and rate set-points bit for
+    bit over a tick sequence that saturates the commands (the integrators' saturation flags) and excites them."""
+    v = load_vehicle("tuhh-quad")
+
+    class Idle:  # a plug-in that sets nothing: forces the protocol's path
+        def reset(self):
+            pass
+
+        def step(self, t, sig):
+            return {}
+
+    rng = np.random.default_rng(2)
+    meas = [dict(zip(("phi", "theta", "psi", "p", "q", "r"), row)) for row in rng.normal(0.0, 20.0, (300, 6))]
+    exc = rng.normal(0.0, 3.0, 300)
+    runs = []
+    for extra in ((), (Idle(),)):
+        fs = make_flight_software(v, resolve_gains(v, None), Setup(mode="cascade", excitation={"u_lon": exc}),
+                                  1 / 250, controller=AutopilotSpec.from_params(autopilot))
+        fs.plugins.extend(extra)
+        fs.set_reference(phi_ref=5.0, theta_ref=-3.0, psi_ref=10.0)
+        out = []
+        for k, m in enumerate(meas):
+            sig = dict(m)
+            fs.step_signals(k / 250, sig)
+            out.append([sig[c] for c in ("u_lat", "u_lon", "u_yaw", "p_ref", "q_ref", "r_ref")] + list(sig["rotor_pct"]))
+        runs.append(np.array(out))
+    assert np.isfinite(runs[0]).all()
+    assert (np.abs(runs[0][:, 0]) == fs.u_limit_pct).any()  # saturated at times: the flags were exercised
+    np.testing.assert_array_equal(runs[0], runs[1], strict=True)
+
+
 def test_open_loop_mode_adds_the_opened_axis_command_to_the_autopilot_and_runs_no_cascade():
     v = load_vehicle("tuhh-quad")
     spec = AutopilotSpec.from_params("px4")

@@ -234,6 +234,28 @@ def test_air_motion_of_one_simulation_is_the_body_wind_of_many_plus_the_air_rota
     assert np.array_equal(ctrl[[2, 3, 1]], wind[0])
 
 
+@pytest.mark.parametrize("vehicle", ["anteos-p2a2", "tuhh-quad", "x500"])
+def test_one_simulations_rotor_ctrl_in_floats_is_the_array_map(vehicle):
+    """The float path every tick writes (command_to_ctrl_floats, set_rotor_ctrl of one simulation) gives the
+    controls of command_to_ctrl's array path (the batched runner) bit for bit, commands below, inside and above
+    the range and NaN included, and set_rotor_ctrl stores them in the thrust actuators and their spin-up twins."""
+    v = load_vehicle(vehicle)
+    rng = np.random.default_rng(5)
+    cmds = rng.uniform(-20.0, 120.0, (500, v.n_rotors))
+    cmds[0, 0], cmds[1, :] = math.nan, [0.0, 100.0, -0.0, 50.0][: v.n_rotors] + [1.0] * (v.n_rotors - 4)
+    many = v.command_to_ctrl(cmds)
+    for k in range(len(cmds)):
+        floats = v.command_to_ctrl_floats(cmds[k].tolist())
+        assert all(type(c) is float for c in floats)
+        np.testing.assert_array_equal(np.array(floats), many[k], strict=True)
+    sim = Simulator("free-flight", vehicle, sensor_noise=False)
+    sim.set_rotor_commands(cmds[7].tolist())
+    ctrl = sim.data.ctrl
+    np.testing.assert_array_equal(ctrl[sim.scene.thrust_actuators], many[7])
+    if len(sim.scene.spinup_actuators):
+        np.testing.assert_array_equal(ctrl[sim.scene.spinup_actuators], many[7])
+
+
 @pytest.mark.parametrize("vehicle", ["anteos-p2a2", "tuhh-quad"])
 def test_rotor_aerodynamics_see_rotation_relative_to_the_air(vehicle):
     """set_air_motion with the air's rotation (the turbulence's gust gradients): every rotor aero actuator

@@ -153,14 +153,37 @@ class AutopilotController:
         self._sat_neg = (False, False, False)
 
     def step(self, t: float, sig: dict) -> dict:
+        """One tick from the flight software's signals (the plug-in protocol): the commands and the rate
+        set-points (deg/s) by name (:meth:`fly`)."""
+        if self.add_commands:
+            u_lat, u_lon, u_yaw = sig["u_lat"], sig["u_lon"], sig["u_yaw"]
+        else:
+            u_lat = u_lon = u_yaw = 0.0
+        out = self.fly(t, sig["phi"], sig["theta"], sig["psi"], sig["phi_ref"], sig["theta_ref"], sig["psi_ref"],
+                       sig["p"], sig["q"], sig["r"], u_lat, u_lon, u_yaw)
+        return dict(zip(("u_lat", "u_lon", "u_yaw", "p_ref", "q_ref", "r_ref"), out))
+
+    def fly(self, t: float, phi, theta, psi, phi_ref, theta_ref, psi_ref, p, q, r, u_lat=0.0, u_lon=0.0,
+            u_yaw=0.0) -> tuple:
+        """One tick from floats: attitude and its set-point (deg), gyro (deg/s) and, with :attr:`add_commands`,
+        the commands to add (%). Returns ``(u_lat, u_lon, u_yaw, p_ref, q_ref, r_ref)`` (%, deg/s).
+        :class:`~rotorlab.sim.control.flight_software.FlightSoftware` calls it directly when the autopilot is its
+        only plug-in, so a tick gathers and builds no dict for it.
+
+        Examples
+        --------
+        >>> ctl = AutopilotController(AutopilotSpec.from_params("px4"), 1 / 250)
+        >>> u_lat, u_lon, u_yaw, p_ref, q_ref, r_ref = ctl.fly(0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        >>> round(p_ref, 3), round(u_lat, 3)  # MC_ROLL_P = 4: 4 deg/s; MC_ROLLRATE_P = 0.15 per rad/s: 1.047 %
+        (4.0, 1.047)
+        """
         # plain floats throughout: it runs every tick
         if self.rate_reference is not None:
             rate_sp = tuple(float(v) * _D2R for v in self.rate_reference(t))
         else:
-            q = euler_to_quat(sig["phi"] * _D2R, sig["theta"] * _D2R, sig["psi"] * _D2R)
-            q_sp = euler_to_quat(sig["phi_ref"] * _D2R, sig["theta_ref"] * _D2R, sig["psi_ref"] * _D2R)
-            rate_sp = self.att.update(q, q_sp)
-        gyro = (sig["p"] * _D2R, sig["q"] * _D2R, sig["r"] * _D2R)
+            rate_sp = self.att.update(euler_to_quat(phi * _D2R, theta * _D2R, psi * _D2R),
+                                      euler_to_quat(phi_ref * _D2R, theta_ref * _D2R, psi_ref * _D2R))
+        gyro = (p * _D2R, q * _D2R, r * _D2R)
         if self._px4:
             tq = self.rate.step(rate_sp, gyro, sat_pos=self._sat_pos, sat_neg=self._sat_neg)
         else:
@@ -169,9 +192,8 @@ class AutopilotController:
                                                       self._sat_pos[2] or self._sat_neg[2]))
         u0, u1, u2 = TORQUE_TO_PCT * tq[0], TORQUE_TO_PCT * tq[1], TORQUE_TO_PCT * tq[2]
         if self.add_commands:
-            u0, u1, u2 = u0 + sig["u_lat"], u1 + sig["u_lon"], u2 + sig["u_yaw"]
-        lim = self.limits
-        self._sat_pos = (u0 > lim[0], u1 > lim[1], u2 > lim[2])
-        self._sat_neg = (u0 < -lim[0], u1 < -lim[1], u2 < -lim[2])
-        return {"u_lat": u0, "u_lon": u1, "u_yaw": u2,
-                "p_ref": rate_sp[0] / _D2R, "q_ref": rate_sp[1] / _D2R, "r_ref": rate_sp[2] / _D2R}
+            u0, u1, u2 = u0 + u_lat, u1 + u_lon, u2 + u_yaw
+        l0, l1, l2 = self.limits
+        self._sat_pos = (u0 > l0, u1 > l1, u2 > l2)
+        self._sat_neg = (u0 < -l0, u1 < -l1, u2 < -l2)
+        return u0, u1, u2, rate_sp[0] / _D2R, rate_sp[1] / _D2R, rate_sp[2] / _D2R

@@ -106,7 +106,9 @@ class FlightSoftware:
         (its commands would be overwritten), which saves its cost every tick, and the commands the plug-in finds
         are the command excitation alone, plus, in open-loop mode on the opened axes, the external command and the
         supervisor (added to the autopilot's output: closed-loop identification with the autopilot flying). Set
-        by the runner when it adds such a plug-in.
+        by the runner when it adds such a plug-in; when it is the only plug-in, the tick calls its ``fly`` with
+        the attitude, the set-points, the gyro and those commands as floats
+        (:meth:`~rotorlab.sim.control.autopilot.AutopilotController.fly`).
     """
 
     def __init__(self, gains: GainSet, mixer: Mixer, dt: float = 0.02, mode: str = "cascade", *, limits,
@@ -328,11 +330,17 @@ class FlightSoftware:
             u_yaw, r_ref = att.yaw.step(psi_ref, psi, r, ff_yaw)
 
         sig["phi_ref"], sig["theta_ref"], sig["psi_ref"] = phi_ref, theta_ref, psi_ref
+        plugins = self.plugins
+        solo = self.attitude_by_plugin and len(plugins) == 1
+        if solo:
+            # the autopilot alone (the runner's --controller AUTOPILOT:PARAMS): its floats in and out, no dict
+            u_lat, u_lon, u_yaw, p_ref, q_ref, r_ref = plugins[0].fly(
+                t, phi, theta, psi, phi_ref, theta_ref, psi_ref, p, q, r, u_lat, u_lon, u_yaw)
         sig["p_ref"], sig["q_ref"], sig["r_ref"] = p_ref, q_ref, r_ref
 
-        if self.plugins:
+        if plugins and not solo:
             sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"] = u_col, u_lat, u_lon, u_yaw
-            for pl in self.plugins:
+            for pl in plugins:
                 out = pl.step(t, sig)
                 if out:
                     sig.update(out)
