@@ -20,7 +20,7 @@ __all__ = ["LMS", "lms_batch", "kung"]
 
 
 class LMS:
-    """Adaptive FIR filter ``y_hat(k) = w . [u(k), u(k-1), ..., u(k-L+1)]`` updated by (normalised) LMS.
+    """Adaptive FIR filter ``y_hat(k) = w^T [u(k), u(k-1), ..., u(k-L+1)]`` updated by (normalised) LMS.
 
     ``w <- (1 - mu * leakage) w + step * e * u_window`` with ``e = y - y_hat`` and ``step = mu`` (plain
     LMS, stable for ``0 < mu < 2 / (L * var(u))``) or ``mu / (eps + |u_window|^2)`` (normalised, stable for

@@ -150,7 +150,7 @@ class MonteCarloResult:
         than ``marginal_tol`` (spectral abscissa > ``marginal_tol``).
     marginal : bool mask (n,) of samples with a pole within ``marginal_tol`` of the boundary: neither stable
         nor unstable, reported apart and left out of the bands and statistics.
-    abscissa : closed-loop spectral abscissa per sample (max Re p, or max |p| - 1 when discrete).
+    abscissa : closed-loop spectral abscissa per sample (max Re p, or max abs(p) - 1 when discrete).
     rise_time_s, settling_time_s, overshoot_pct : set-point statistics per sample of
         :func:`rotorlab.stepresponse.step_metrics` for the unit step (NaN where undefined/unstable).
     load_peak : peak ``|y|`` of the load response per sample.
