@@ -214,7 +214,28 @@ def fit_wdelta(G_nom, G_reps, w, order: int = 3, under_weight: float = 10.0) -> 
 def control_sensitivity(G, C) -> ct.StateSpace:
     """Nominal control sensitivity ``V = -C/(1 + G C)`` of the single loop ``u = C (r - y)``, ``y = G u``:
     the transfer from a signal added to ``y`` to ``u``. Returned with every closed-loop state (no
-    cancellation), so internal instability stays visible to :func:`h_lim`."""
+    cancellation), so internal instability stays visible to :func:`h_lim`.
+
+    Parameters
+    ----------
+    G : StateSpace or TransferFunction
+        Nominal plant (SISO), input delay included.
+    C : StateSpace or TransferFunction
+        Controller in the same time domain.
+
+    Returns
+    -------
+    StateSpace
+        ``V``, with all closed-loop states.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> V = tune.control_sensitivity(ct.ss(ct.tf([1.0], [1, 1])), ct.ss(ct.tf([2.0], [1])))
+    >>> round(float(ct.evalfr(V, 0).real), 4)               # -C/(1 + G C) at DC: -2/3
+    -0.6667
+    """
     G = _finite_ss(G, "G")
     C = _finite_ss(C, "C")
     _same_domain(G, C, "control_sensitivity")
@@ -237,6 +258,20 @@ def h_lim(W_delta, V_nom) -> float:
     DataError
         when ``V_nom`` is unstable (the nominal closed loop is not stable, so no ``h`` is robust), on
         NaN entries, mismatched dimensions or time domains.
+
+    Returns
+    -------
+    float
+        The largest peak gain ``h`` of a stable ``Delta`` for which every ``G_nom + W_delta Delta`` is stabilised.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G, C = ct.ss(ct.tf([1.0], [1, 1])), ct.ss(ct.tf([2.0], [1]))
+    >>> V = tune.control_sensitivity(G, C)                  # -C/(1 + G C) = -2 (s + 1)/(s + 3)
+    >>> round(tune.h_lim(ct.ss(ct.tf([0.5], [1])), V), 4)   # 1/||0.5 V|| = 1/(0.5 * 2)
+    1.0
     """
     W = _finite_ss(W_delta, "W_delta")
     V = _finite_ss(V_nom, "V_nom")
