@@ -28,6 +28,7 @@ COMMANDS = {
     "plot": "plot",
     "bode": "bode",
     "compare": "compare",
+    "export-mjcf": "export_mjcf",
 }
 
 
