@@ -31,20 +31,13 @@ def _links(md: Path):
                 yield target.split("#")[0], n
 
 
-def _outside_block(text: str):
-    """README lines outside the generated headline block (docs/readme_numbers.py writes that block)."""
-    lines = text.splitlines()
-    b = next(i for i, ln in enumerate(lines) if ln.startswith(BEGIN))
-    e = lines.index(END)
-    return lines[:b] + lines[e + 1:]
-
-
 def test_readme_is_short():
     text = README.read_text(encoding="utf-8")
     lines = text.splitlines()
     assert len(lines) <= 200, f"README.md has {len(lines)} lines; move detail into docs/"
-    long = [(n, len(ln)) for n, ln in enumerate(_outside_block(text), 1) if len(ln) > 120]
-    assert not long, f"README.md lines over 120 characters (line, length): {long}"
+    long = [(n, len(ln)) for n, ln in enumerate(lines, 1) if len(ln) > 120]
+    assert not long, f"README.md lines over 120 characters (line, length): {long} (the generated block too: " \
+                     "the report's headline wraps at 118)"
     assert BEGIN in text and END in text, "the generated headline block (docs/readme_numbers.py) is missing"
 
 
