@@ -263,7 +263,7 @@ def _gram_factor(z: np.ndarray, rows: int, cols: int, idx: np.ndarray) -> np.nda
     """Lower-triangular ``L`` with ``L L^T = M M^T``, ``M`` = rows ``idx`` of ``block_hankel(z, 0, rows, cols)``.
 
     First by Cholesky of the Gram matrix, built from the Hankel displacement structure in O(N rows) instead
-    of the O(N rows^2) of a QR of ``M`` (about 10x faster at N = 7000, 40-80 block rows). Squaring the data
+    of the O(N rows^2) of a QR of ``M`` (``benchmarks/bench_ident.py`` times the two). Squaring the data
     halves the usable digits, so when the Gram matrix is near singular (noise-free or poorly excited data,
     where the small singular values matter) the dense QR is used instead.
     """

@@ -60,7 +60,8 @@ goals minimised, hard goals kept <= 1 and pole regions as constraints), which is
 systune-like goals. There the tangent program carries the hard goals as constraints, and the BFGS phase
 minimises the exact penalty ``soft + PENALTY * max(0, hard - bound)`` (its end point is kept only when it is
 no worse in (violation, objective)); the only setting that differs is the SLSQP budget per tangent-program
-subproblem (:data:`SPEC_SUB_ITER`), which keeps a start under a second (benchmarks/bench_tune.py).
+subproblem (:data:`SPEC_SUB_ITER`), a smaller budget that bounds each start's cost (benchmarks/bench_tune.py
+times a start).
 """
 
 from __future__ import annotations
@@ -1100,8 +1101,8 @@ def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadlin
                               deadline=deadline, history=history, sub_iter=sub_iter)
         if fg.hard and m[0] <= 1e-9 and pred < tol:
             # feasible and stationary for the tangent program with the hard goals as constraints: BFGS on the
-            # exact penalty can then only creep along the constraint boundary (measured on the P2-A2 spec:
-            # 23 iterations for -0.02 %, ending above the tangent program's point)
+            # exact penalty could then only creep along the constraint boundary (the penalty's kink), so the
+            # rounds stop here
             break
         if len(history) <= cap:
             f, g = fg(x)
