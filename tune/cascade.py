@@ -96,7 +96,28 @@ def plant_model(num, den, delay_s: float = 0.0, name: str = "model", dt: float =
 
 
 def cascade_plant(model: PlantModel, dt: float) -> ct.StateSpace:
-    """``u -> [q; theta]`` with the delay, discrete at ``dt`` (ZOH + exact z^-k) or continuous (Pade) if dt == 0."""
+    """``u -> [q; theta]`` with the delay, discrete at ``dt`` (ZOH + exact z^-k) or continuous (Pade) if dt == 0.
+
+    Parameters
+    ----------
+    model : PlantModel
+        The rate model ``u [%] -> q [deg/s]`` and its delay.
+    dt : float
+        Controller sample time, s (0: continuous, the delay as a Pade approximant).
+
+    Returns
+    -------
+    StateSpace
+        ``u -> [q; theta]``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> plant = tune.plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06)
+    >>> Gp = tune.cascade_plant(plant, 0.02)            # 2 plant states, 3 delay samples, 1 integrator q -> theta
+    >>> Gp.noutputs, Gp.nstates, Gp.dt
+    (2, 6, 0.02)
+    """
     G = lti.as_ss(model.G)
     if G.ninputs != 1 or G.noutputs != 1:
         raise ValueError(f"model '{model.name}' must be SISO u -> q, got {G.noutputs}x{G.ninputs}")

@@ -198,7 +198,31 @@ class Channel:
 
 
 def closed_loop(P, nmeas: int, ncon: int, K) -> ct.StateSpace:
-    """Lower LFT ``F_l(P, K)`` as a StateSpace (states: plant then controller), with ``u = K y``."""
+    """Lower LFT ``F_l(P, K)`` as a StateSpace (states: plant then controller), with ``u = K y``.
+
+    Parameters
+    ----------
+    P : StateSpace
+        Generalised plant, inputs ``[w; u]``, outputs ``[z; y]``.
+    nmeas, ncon : int
+        Sizes of ``y`` (the last outputs) and ``u`` (the last inputs).
+    K : StateSpace
+        Controller ``y -> u`` in the time domain of ``P``.
+
+    Returns
+    -------
+    StateSpace
+        ``w -> z``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> P = ct.ss([[1.0]], [[1.0, 1.0]], [[1.0], [1.0]], [[0.0, 0.0], [0.0, 0.0]])   # [w, u] -> [z, y], x' = x + w + u
+    >>> cl = tune.closed_loop(P, 1, 1, ct.ss([], [], [], [[-3.0]]))                   # u = -3 y
+    >>> print(cl.poles())
+    [-2.+0.j]
+    """
     P = lti.as_ss(P)
     K = lti.as_ss(K)
     mats = _cl_matrices(P, nmeas, ncon, *(np.asarray(M, float) for M in (K.A, K.B, K.C, K.D)))

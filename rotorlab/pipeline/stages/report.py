@@ -386,8 +386,12 @@ def write_report(ctx: StageContext) -> dict:
         summary["skipped"]["greybox"] = gb["skipped"]
     summary["design_claims"] = tuhh_report.design_claims(validation)
     summary["claims"] = claims(summary, tuned) if tuned else []
-    summary["loops"] = loop_analysis(ctx.run.plant(ident["nominal"], "nominal"),
-                                     {n: g for n, g in ctx.run.gain_sets().items() if n in sets})
+    try:
+        summary["loops"] = loop_analysis(ctx.run.plant(ident["nominal"], "nominal"),
+                                         {n: g for n, g in ctx.run.gain_sets().items() if n in sets})
+    except Exception as exc:  # an analysis table must never sink the report; say which and why
+        summary["loops"] = {}
+        summary["skipped"]["loops"] = f"skipped: {type(exc).__name__}: {exc}"
     fig_paths, skipped = render_figures(ctx, figs, ident, sets, tuned)
     summary["skipped"].update(skipped)
     summary["figures"] = fig_paths
@@ -565,15 +569,17 @@ def verdict(s) -> list[str]:
     twin, what got worse, and what the run did not check. Counts only the scenario rows of the headline as
     evidence (the model rows are analyses of one identified model), and never a :data:`MODEL_BOUND` row."""
     cmp_ = s.get("compared_set")
-    not_checked = ("Not checked: a real flight (every number is the twin's or the identified model's); the roll "
-                   "and yaw loops (the tuning and the validation metrics are pitch's)")
+    not_checked = ("Not checked: a real flight (every number is the twin's or the identified model's); "
+                   + ("the roll and yaw loops (the tuning and the validation metrics are pitch's)" if cmp_ else
+                      "the yaw loop (the designs fly on the roll and pitch rigs)"))
     skipped = sorted(s.get("skipped") or {})
     if skipped:
         not_checked += f"; {len(skipped)} skipped item(s), listed under Skipped"
     not_checked += "."
     if not cmp_:
-        return ["No gain set is recommended: no tuning spec ships for this vehicle and no set other than the "
-                "standard one was tuned; the designs of the reference are compared below.", not_checked]
+        return ["No tuned gain set to fly: no tuning spec ships for this vehicle, so the standard set "
+                "(`report/gains/standard.toml` in the run folder) stays; the reference's designs are compared "
+                "below, flown on the twin in place of the cascade.", not_checked]
     header, rows = headline_rows(s)
     twin = [r for r in rows if not r[0].startswith("model:")]
     better = [r for r in twin if r[-1] == "better"]
