@@ -27,6 +27,23 @@ def varx_input_impulse(u, y, lags: int):
         ``b[i - 1]`` is the coefficient of ``u(k - i)``.
     t : ndarray, shape (lags, p, m)
         Their t-statistics (estimate / standard error).
+
+    Parameters
+    ----------
+    u, y : array_like, shape (N,) or (N, m) / (N, p)
+        Input and output records.
+    lags : int
+        VARX order.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> u = np.random.default_rng(0).standard_normal(2000)
+    >>> e = 0.1 * np.random.default_rng(1).standard_normal(2000)
+    >>> y = np.concatenate([[0.0, 0.0], 0.5 * u[:-2]]) + e     # y(k) = 0.5 u(k - 2) + noise
+    >>> b, se = ident.varx_input_impulse(u, y, lags=4)
+    >>> int(np.argmax(np.abs(b.ravel()))), round(float(b.ravel()[1]), 2)   # lag 2 (index 1), coefficient 0.5
+    (1, 0.5)
     """
     u2, y2 = check_io(u, y, min_samples=4 * lags * 2 + lags, what="varx_input_impulse")
     m, p = u2.shape[1], y2.shape[1]

@@ -348,6 +348,31 @@ def simulate_greybox(model: GreyBoxModel, u, dt: float, theta: Mapping[str, floa
     """Output ``(N, p)`` of the grey-box model for input samples ``u`` held over ``dt`` (ZOH, delay included).
 
     ``x0`` is the initial state of the continuous plant (delayed inputs before the record are zero).
+
+    Parameters
+    ----------
+    model : GreyBoxModel
+        The structure.
+    u : array_like, (N,) or (N, m)
+        Input samples.
+    dt : float
+        Sample time, s.
+    theta : dict, optional
+        Parameter values (default: the model's).
+    x0 : array_like, optional
+        Initial state of the continuous plant.
+
+    Returns
+    -------
+    ndarray, shape (N, p)
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> m = ident.first_order_structure(K=2.0, tau=0.1, delay_s=0.02)
+    >>> y = ident.simulate_greybox(m, np.ones(100), dt=0.01)
+    >>> bool(abs(y[1, 0]) < 1e-12), round(float(y[-1, 0]), 3)  # the 2-sample delay, then 2 (1 - e^{-t/tau})
+    (True, 2.0)
     """
     u2 = as_columns(u, "u")
     sysd = model.discretize(dt, theta)
@@ -685,6 +710,22 @@ def periodic_average(x, period: int, skip: int = 1):
     Returns
     -------
     ndarray, (period,) + x.shape[1:]
+
+    Parameters
+    ----------
+    x : array_like
+        Samples along axis 0, a whole number of periods or more.
+    period : int
+        Period, samples.
+    skip : int
+        Leading periods left out.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> x = np.tile([1.0, 2.0, 3.0], 4) + np.array([9, 9, 9, 0, 0, 0, 0, 0, 0, 0, 0, 0])   # a transient in period 1
+    >>> print(ident.periodic_average(x, period=3, skip=1))
+    [1. 2. 3.]
     """
     return split_periods(x, period, skip).mean(axis=0)
 
@@ -697,6 +738,21 @@ def split_periods(x, period: int, skip: int = 1):
     -------
     ndarray, (n, period) + x.shape[1:]
         ``n`` the whole periods after the first ``skip``; a partial last period is dropped.
+
+    Parameters
+    ----------
+    x : array_like
+        Samples along axis 0.
+    period : int
+        Period, samples.
+    skip : int
+        Leading periods left out.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> ident.split_periods(np.arange(9.0), period=3, skip=1).tolist()
+    [[3.0, 4.0, 5.0], [6.0, 7.0, 8.0]]
     """
     x = np.asarray(x, dtype=float)
     if not period >= 1:

@@ -288,6 +288,36 @@ def check_identifiable(log: Log, u_cols, y_cols, order: int, horizon: int, futur
     observability matrix must have rank ``order``); the data Hankel matrices have at least as many
     columns as rows, ``N - past - future + 1 >= (past + future) (m + p)``, so their LQ factor is
     well posed.
+
+    Parameters
+    ----------
+    log : Log
+        From :func:`load_log`.
+    u_cols, y_cols : sequence of str
+        Input and output columns.
+    order : int
+        Model order.
+    horizon : int
+        Past horizon (block rows).
+    future : int, optional
+        Future horizon (default ``horizon``).
+
+    Returns
+    -------
+    None
+        Returns when the log can support the model; raises otherwise.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> from rotorlab.ident.logs import Log
+    >>> t = np.arange(100) * 0.02
+    >>> log = Log(t, {"u": np.sign(np.sin(3 * t)), "q": np.cos(t)}, {"u": "%", "q": "deg/s"})
+    >>> ident.check_identifiable(log, ["u"], ["q"], order=2, horizon=10)     # 100 samples are enough for s = 10
+    >>> ident.check_identifiable(log, ["u"], ["q"], order=2, horizon=40)
+    Traceback (most recent call last):
+    ...
+    rotorlab.errors.DataError: ...
     """
     u, y = log.to_arrays(u_cols, y_cols)
     N, m = u.shape

@@ -231,6 +231,24 @@ def stability_margin_bpc(P, C) -> float:
 
     0 when the loop is not internally stable. Robust-stability link: the loop stays stable for every plant
     within nu-gap ``< b_{P,C}`` of ``P`` (Vinnicombe).
+
+    Parameters
+    ----------
+    P, C : StateSpace or TransferFunction
+        Plant and controller, in the same time domain.
+
+    Returns
+    -------
+    float
+        ``b_{P,C}`` in [0, 1].
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import ident
+    >>> P, C = ct.tf([1.0], [1, 1]), ct.tf([1.0], [1])
+    >>> round(ident.stability_margin_bpc(P, C), 4)            # 1/sqrt(2) for P = 1/(s + 1), C = 1
+    0.7071
     """
     P, C = as_ss(P), as_ss(C)
     m = P.ninputs

@@ -254,7 +254,26 @@ def rigid_rig_tf_coefficients(theta) -> dict[str, float]:
 
 def rate_tf_structure(fixed=None, **values) -> GreyBoxModel:
     """The published black-box rate form ``q/u = K (s + z)/(s^2 + a s + b) e^(-s delay_s)`` (doc 000 PBSID
-    models), parametrised directly; defaults are the P2-A2 test-bed model, delay 0.06 s fixed."""
+    models), parametrised directly; defaults are the P2-A2 test-bed model, delay 0.06 s fixed.
+
+    Parameters
+    ----------
+    fixed : sequence of str, optional
+        Parameters kept at their values during a fit (default: the delay).
+    **values : float
+        Initial (or fixed) values by name: ``K``, ``z``, ``a``, ``b``, ``delay_s``.
+
+    Returns
+    -------
+    GreyBoxModel
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> m = ident.rate_tf_structure()
+    >>> m.free, m.param("b").value
+    (['K', 'z', 'a', 'b'], 21.3)
+    """
     params = _apply([
         Param("K", 12.517, -INF, INF, "(deg/s)/(% s)"),
         Param("z", 2.906, -INF, INF, "1/s"),
@@ -270,7 +289,26 @@ def rate_tf_structure(fixed=None, **values) -> GreyBoxModel:
 
 
 def first_order_structure(fixed=None, **values) -> GreyBoxModel:
-    """First-order lag with delay ``K e^(-s delay_s)/(tau s + 1)`` (motor speed per throttle command)."""
+    """First-order lag with delay ``K e^(-s delay_s)/(tau s + 1)`` (motor speed per throttle command).
+
+    Parameters
+    ----------
+    fixed : sequence of str, optional
+        Parameters kept at their values during a fit.
+    **values : float
+        Initial (or fixed) values by name: ``K``, ``tau``, ``delay_s``.
+
+    Returns
+    -------
+    GreyBoxModel
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> m = ident.first_order_structure(K=2.0, tau=0.05)
+    >>> m.names, m.free
+    (['K', 'tau', 'delay_s'], ['K', 'tau', 'delay_s'])
+    """
     params = _apply([
         Param("K", 1.0, -INF, INF, "output per input"),
         Param("tau", 0.05, 1e-5, 100.0, "s"),

@@ -33,34 +33,18 @@ PUBLIC = _public()
 
 #: functions without Parameters, Returns and Examples yet; remove a name when its docstring is complete
 UNDOCUMENTED = frozenset({
-    "ident.butterworth_weight",
-    "ident.check_identifiable",
-    "ident.etfe",
-    "ident.first_order_structure",
     "ident.hinf_match",
-    "ident.model_frf",
     "ident.oe_fit",
     "ident.oe_fit_closed_loop",
-    "ident.periodic_average",
     "ident.pitch_structure",
-    "ident.rate_tf_structure",
     "ident.rigid_rig_structure",
     "ident.simulate_closed_loop",
-    "ident.simulate_greybox",
-    "ident.split_periods",
-    "ident.stability_margin_bpc",
     "ident.tuhh_axis_structure",
-    "ident.varx_input_impulse",
-    "tune.generalised_plant",
     "tune.glover_mcfarlane",
     "tune.hinf_mixed_sensitivity",
-    "tune.modified_pid",
-    "tune.pid_backcalculation",
     "tune.riccati_antiwindup",
     "tune.simulate_saturated_loop",
-    "tune.tuhh_axis_plant",
     "tune.tuhh_generalized_plant",
-    "tune.tuhh_torque_gain",
 })
 
 

@@ -77,6 +77,29 @@ def pid_backcalculation(kp: float, ki: float, kd: float = 0.0, tf: float = 0.0, 
     Default tracking time ``Tt = sqrt(Ti Td)`` (Astrom & Hagglund), or ``Ti/2`` without D.
 
     Returns a continuous StateSpace with inputs ``e[0..n_err-1]`` and ``u_tilde``, output ``u``.
+
+    Parameters
+    ----------
+    kp, ki, kd : float
+        PID gains.
+    tf : float
+        Derivative filter time constant, s.
+    tt_s : float, optional
+        Tracking time constant of the back-calculation, s.
+    n_err : {1, 2}
+        One error input, or the modified PID's ``[r - angle, -rate]``.
+
+    Returns
+    -------
+    StateSpace
+        Continuous, inputs ``[error(s), u~]`` with ``u~ = u - sat(u)``, output ``u``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> K = tune.pid_backcalculation(kp=1.0, ki=2.0)           # PI: tracking time Ti / 2 = 0.25 s
+    >>> K.ninputs, K.noutputs                                  # [e, u~] -> u
+    (2, 1)
     """
     if ki <= 0:
         raise DataError(f"back-calculation needs integral action; got ki={ki}")

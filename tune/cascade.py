@@ -143,6 +143,28 @@ def generalised_plant(Gp: ct.StateSpace, opened=(), inputs=INPUTS, outputs=OUTPU
 
     At a cut point the signal downstream is the injection alone; the output of the same name still reports
     the signal before the cut.
+
+    Parameters
+    ----------
+    Gp : StateSpace
+        ``u -> [q; theta]`` from :func:`cascade_plant`.
+    opened : sequence of str
+        Loop points cut (``"theta"``, ``"q"``, ``"u"``); at a cut the signal downstream is the injection alone.
+    inputs, outputs : sequence of str
+        The exogenous inputs ``w`` and performance outputs ``z`` to keep.
+
+    Returns
+    -------
+    StateSpace
+        ``[w; q_ref_c, u_c] -> [z; theta_ref, theta_meas, q_ref, q_meas]``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> Gp = tune.cascade_plant(tune.plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06), 0.02)
+    >>> P = tune.generalised_plant(Gp, inputs=("theta_ref",), outputs=("theta",))
+    >>> P.ninputs, P.noutputs                                  # [theta_ref; 2 controls] -> [theta; 4 measurements]
+    (3, 5)
     """
     opened = set(opened)
     A, B, C, D = (np.asarray(M, float) for M in (Gp.A, Gp.B, Gp.C, Gp.D))

@@ -58,7 +58,23 @@ def _omega(b: float) -> float:
 
 
 def tuhh_torque_gain(axis: str = "pitch") -> float:
-    """Moment per unit motor command, N m (roll/pitch: ``l dT/db``; yaw: ``dQ/db``) at hover."""
+    """Moment per unit motor command, N m (roll/pitch: ``l dT/db``; yaw: ``dQ/db``) at hover.
+
+    Parameters
+    ----------
+    axis : {'roll', 'pitch', 'yaw'}
+
+    Returns
+    -------
+    float
+        N m per unit motor command.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> bool(tune.tuhh_torque_gain("pitch") > 0), bool(tune.tuhh_torque_gain("yaw") < tune.tuhh_torque_gain("pitch"))
+    (True, True)
+    """
     _axis(axis)
     R, bH = TUHH["R_m"], TUHH["b_H"]
     area = math.pi * R * R
@@ -79,6 +95,18 @@ def tuhh_axis_plant(axis: str = "pitch", pade_order: int = 3, delay: bool = True
     pade_order : order of the Pade approximation of the delay ``Td`` (``delay=False`` leaves it out, e.g.
         to add it exactly in a discrete simulation).
     regularize : shift of the two integrator poles to ``s = -regularize`` (1/s), for H-inf synthesis.
+
+    Returns
+    -------
+    StateSpace
+        Continuous, input ``b``, outputs ``[angle (rad), rate (rad/s)]``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> G = tune.tuhh_axis_plant("pitch", delay=False)         # K |p|/(s + |p|) / (J s^2) and its rate
+    >>> G.noutputs, G.nstates
+    (2, 3)
     """
     par = _axis(axis)
     k = tuhh_torque_gain(axis)
@@ -119,7 +147,25 @@ def _stack_rate_angle(g_rate, integ):
 
 def modified_pid(kp: float, ki: float, kd: float) -> ct.StateSpace:
     """The 'modified PID' of ref. 002 fig. 4(b) as a 1x2 controller on ``[r - angle, -rate]``:
-    ``u = kp e + ki/s e + kd (-rate)`` (derivative from the measured rate, so the D part is a gain)."""
+    ``u = kp e + ki/s e + kd (-rate)`` (derivative from the measured rate, so the D part is a gain).
+
+    Parameters
+    ----------
+    kp, ki, kd : float
+        Proportional and integral gains on the angle error and the gain on the measured rate.
+
+    Returns
+    -------
+    StateSpace
+        Continuous, inputs ``[r - angle, -rate]``, output ``u``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> K = tune.modified_pid(kp=2.0, ki=1.0, kd=0.3)
+    >>> K.ninputs, K.noutputs, K.nstates                     # [r - angle, -rate] -> u, one integrator
+    (2, 1, 1)
+    """
     return ct.ss([[0.0]], [[1.0, 0.0]], [[ki]], [[kp, kd]])
 
 
