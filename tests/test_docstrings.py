@@ -34,17 +34,7 @@ PUBLIC = _public()
 #: functions without Parameters, Returns and Examples yet; remove a name when its docstring is complete
 UNDOCUMENTED = frozenset({
     "ident.hinf_match",
-    "ident.oe_fit",
-    "ident.oe_fit_closed_loop",
-    "ident.pitch_structure",
-    "ident.rigid_rig_structure",
-    "ident.simulate_closed_loop",
-    "ident.tuhh_axis_structure",
-    "tune.glover_mcfarlane",
     "tune.hinf_mixed_sensitivity",
-    "tune.riccati_antiwindup",
-    "tune.simulate_saturated_loop",
-    "tune.tuhh_generalized_plant",
 })
 
 

@@ -205,7 +205,27 @@ def tuhh_generalized_plant(G, weights: MixedSensitivityWeights = MixedSensitivit
     """Generalised plant with exogenous ``w = (r_angle, r_rate, d)``, control ``u``; performance outputs
     ``z = (W_S e_angle, W_K u, W_T angle)``; measurements ``e = (V_r1 r_angle - angle, V_r2 r_rate - rate)``.
     The plant input is ``u + V_d d``. ``G`` maps ``u`` to ``[angle, rate]`` (:func:`tuhh_axis_plant`).
-    Input order ``(r_angle, r_rate, d, u)``, output order ``(z1, z2, z3, e_angle, e_rate)``."""
+    Input order ``(r_angle, r_rate, d, u)``, output order ``(z1, z2, z3, e_angle, e_rate)``.
+
+    Parameters
+    ----------
+    G : StateSpace
+        ``u -> [angle, rate]`` (:func:`tuhh_axis_plant`; regularised for a synthesis).
+    weights : MixedSensitivityWeights
+        The weights of ref. 002.
+
+    Returns
+    -------
+    StateSpace
+        Inputs ``(r_angle, r_rate, d, u)``, outputs ``(z1, z2, z3, e_angle, e_rate)``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> P = tune.tuhh_generalized_plant(tune.tuhh_axis_plant("pitch", regularize=1e-3))
+    >>> P.ninputs, P.noutputs               # (r_angle, r_rate, d, u) -> (z1, z2, z3, e_angle, e_rate)
+    (4, 5)
+    """
     G = lti.as_ss(G)
     if (G.noutputs, G.ninputs) != (2, 1):
         raise DataError(f"the TUHH generalised plant needs G: b -> [angle, rate] (2x1); got {G.noutputs}x{G.ninputs}")
@@ -277,6 +297,16 @@ def glover_mcfarlane(G, W1=None, W2=None, gamma_factor: float = 1.1):
         controller with its sign flipped).
     eps_max : float, the maximum normalised-coprime stability margin of ``Gs``.
     gamma : float, the design level (the achieved ``||[I; K_inf](I - Gs K_inf)^-1 [I, Gs]||_inf <= gamma``).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G = ct.ss(ct.tf([1.0], [1, -1]))                         # unstable 1/(s - 1)
+    >>> K, eps_max, gamma = tune.glover_mcfarlane(G)
+    >>> cl = ct.feedback(G * K, 1)                               # u = -K y
+    >>> bool(np.all(np.real(cl.poles()) < 0)), bool(0 < eps_max < 1)
+    (True, True)
     """
     G = lti.as_ss(G)
     if lti.is_discrete(G):
