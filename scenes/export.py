@@ -71,8 +71,7 @@ def mjcf(scene) -> str:
     Examples
     --------
     >>> import mujoco
-    >>> from rotorlab import atomic
-from rotorlab.scenes import build_scene
+    >>> from rotorlab.scenes import build_scene
     >>> from rotorlab.scenes.export import mjcf
     >>> scene = build_scene("pitch-rig", "anteos-p2a2")
     >>> model = mujoco.MjModel.from_xml_string(mjcf(scene))

@@ -54,3 +54,11 @@ def test_cli_writes_the_file_and_refuses_a_bad_scene(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "moon" in err and "pitch-rig" in err and "Traceback" not in err
     assert not (tmp_path / "x.xml").exists()
+
+
+def test_docstring_example_runs():
+    import doctest
+
+    from rotorlab.scenes import export as module
+
+    assert doctest.testmod(module, optionflags=doctest.ELLIPSIS).failed == 0
