@@ -74,7 +74,10 @@ def print_verdict(out: Path) -> None:
     from rotorlab.pipeline.stages.report import wrap
 
     report = stage_dir(out, "report")
-    lines = json.loads((report / "summary.json").read_text(encoding="utf-8")).get("verdict") or []
+    summary = report / "summary.json"
+    if not summary.is_file():  # a pipeline without the report stage (stages=...) has no verdict to print
+        return
+    lines = json.loads(summary.read_text(encoding="utf-8")).get("verdict") or []
     if lines:
         print("\nverdict (" + str(report / "report.md") + "):")
         for sentence in lines:
