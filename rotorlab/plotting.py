@@ -173,12 +173,16 @@ def plot_runs(runs, path, signals=None, title: str | None = None) -> Path:
                 ax.plot(t, cols[c], label=name, **style)
         notes = run["info"].get("notes") or {}
         sw = notes.get("switch_s")
-        if sw is not None:
+        # runs that all switch at one time share one line (coloured lines on the same x would hide each other)
+        shared_switch = len(runs) > 1 and all(((r["info"].get("notes") or {}).get("switch_s")) == sw for r in runs)
+        if sw is not None and not (shared_switch and i > 0):
             to = notes.get("switch_to") or "the switched set"
+            tos = ", ".join(dict.fromkeys(str((r["info"].get("notes") or {}).get("switch_to")) for r in runs))
+            text = (f"gain switch at {sw:g} s, each run to its set ({tos})" if shared_switch else
+                    f"gain switch to {to} at {sw:g} s" + (f" ({lab})" if len(runs) > 1 else ""))
             for ax in axs:
-                ax.axvline(sw, color=f"C{i % 10}", ls=":", lw=1.5,
-                           label=f"gain switch to {to} at {sw:g} s" + (f" ({lab})" if len(runs) > 1 else "")
-                           if ax is axs[0] else None)
+                ax.axvline(sw, color="k" if shared_switch else f"C{i % 10}", ls=":", lw=1.5,
+                           label=text if ax is axs[0] else None)
     u0 = runs[0]["units"]
     for ax, panel in zip(axs, panels):
         unit = next((u0.get(c) for c in panel if u0.get(c)), "")
