@@ -1,7 +1,10 @@
-"""Score our PID (the vehicle's standard cascade gains) on the rotorlab Gymnasium envs: the bar to beat.
+"""
+The PID baseline on every Gymnasium env
+=======================================
 
-Run: ``python examples/pid_baseline.py [--episodes N]``. Prints the mean and spread of the episode return of
-the PID baseline and of a zero-action policy (the floor) on each env, over seeds 0..N-1.
+Score the vehicle's standard cascade gains on the rotorlab Gymnasium envs: the bar a learned policy has to beat.
+Run: ``python examples/pid_baseline.py [--episodes N]`` (default 2). Prints the mean and spread of the episode
+return of the PID baseline and of a zero-action policy (the floor) on each env, over seeds 0..N-1.
 """
 
 from __future__ import annotations
@@ -34,8 +37,8 @@ class HoldPolicy:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--episodes", type=int, default=5)
+    ap = argparse.ArgumentParser(description="Score the standard PID gains on every rotorlab Gymnasium env.")
+    ap.add_argument("--episodes", type=int, default=2)
     ap.add_argument("--no-progress", action="store_true")
     args = ap.parse_args()
     cases = (("rotorlab/PitchRig-v0", RigPIDPolicy), ("rotorlab/RollRig-v0", RigPIDPolicy),

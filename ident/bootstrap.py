@@ -147,6 +147,23 @@ def bootstrap(u, y, identify, n_boot: int = 1000, seed: int | None = 0, n_jobs: 
     Returns
     -------
     BootstrapResult
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import ident
+    >>> G = ct.c2d(ct.tf([12.517, 36.374], [1, 5.583, 21.3]), 0.02)  # published P2-A2 test-bed model, 50 Hz
+    >>> u = np.random.default_rng(0).choice([-1.0, 1.0], 3000)        # a random binary input, %
+    >>> y = ct.forced_response(G, U=u).y[0]                            # pitch rate, deg/s (noise-free)
+    >>> y = y + 0.2 * np.random.default_rng(1).standard_normal(len(y))  # gyro noise, deg/s
+
+    >>> from functools import partial
+    >>> res = ident.bootstrap(u, y, partial(ident.pbsid, order=2, past=20, future=10, dt=0.02), n_boot=20,
+    ...                       progress=False)
+    >>> len(res.models)
+    20
+    >>> bool(np.all(np.abs(res.poles()) < 1))           # every replica is a stable model
+    True
     """
     u2, y2 = check_io(u, y, min_samples=2, what="bootstrap")
     if n_boot < 1:

@@ -46,6 +46,20 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "pi-moesp", orders=range(
     table : list of dict
         One row per tried setting: ``settings`` and ``vaf_cv`` (percent per output, mean); settings that
         are invalid for the data (order too high for the horizon) are skipped.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import ident
+    >>> G = ct.c2d(ct.tf([12.517, 36.374], [1, 5.583, 21.3]), 0.02)  # published P2-A2 test-bed model, 50 Hz
+    >>> u = np.random.default_rng(0).choice([-1.0, 1.0], 3000)        # a random binary input, %
+    >>> y = ct.forced_response(G, U=u).y[0]                            # pitch rate, deg/s (noise-free)
+    >>> y = y + 0.2 * np.random.default_rng(1).standard_normal(len(y))  # gyro noise, deg/s
+
+    >>> best, table = ident.select_order(u[:2000], y[:2000], u[2000:], y[2000:], method="pbsid", orders=[1, 2, 3],
+    ...                                  horizons=[10], dt=0.02)
+    >>> best.sys.nstates, len(table)
+    (2, 3)
     """
     if method not in SUBSPACE_METHODS:
         raise DataError(f"method must be one of {', '.join(SUBSPACE_METHODS)}; got {method!r}")

@@ -27,6 +27,23 @@ def varx_input_impulse(u, y, lags: int):
         ``b[i - 1]`` is the coefficient of ``u(k - i)``.
     t : ndarray, shape (lags, p, m)
         Their t-statistics (estimate / standard error).
+
+    Parameters
+    ----------
+    u, y : array_like, shape (N,) or (N, m) / (N, p)
+        Input and output records.
+    lags : int
+        VARX order.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> u = np.random.default_rng(0).standard_normal(2000)
+    >>> e = 0.1 * np.random.default_rng(1).standard_normal(2000)
+    >>> y = np.concatenate([[0.0, 0.0], 0.5 * u[:-2]]) + e     # y(k) = 0.5 u(k - 2) + noise
+    >>> b, se = ident.varx_input_impulse(u, y, lags=4)
+    >>> int(np.argmax(np.abs(b.ravel()))), round(float(b.ravel()[1]), 2)   # lag 2 (index 1), coefficient 0.5
+    (1, 0.5)
     """
     u2, y2 = check_io(u, y, min_samples=4 * lags * 2 + lags, what="varx_input_impulse")
     m, p = u2.shape[1], y2.shape[1]
@@ -83,6 +100,19 @@ def estimate_delay(u, y, max_delay: int, lags: int | None = None, alpha: float =
     int
         Delay ``d`` such that ``y(k)`` first responds to ``u(k - d - 1)`` (strictly proper) or
         ``u(k - d)`` (``feedthrough``), i.e. the value to pass as ``delay`` to :func:`moesp`/:func:`pbsid`.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import ident
+    >>> G = ct.c2d(ct.tf([12.517, 36.374], [1, 5.583, 21.3]), 0.02)  # published P2-A2 test-bed model, 50 Hz
+    >>> u = np.random.default_rng(0).choice([-1.0, 1.0], 3000)        # a random binary input, %
+    >>> y = ct.forced_response(G, U=u).y[0]                            # pitch rate, deg/s (noise-free)
+
+    >>> noise = 0.05 * np.random.default_rng(1).standard_normal(len(y))  # measurement noise, deg/s
+    >>> y_delayed = np.concatenate([np.zeros(3), y[:-3]]) + noise      # a 3-sample (0.06 s) transport delay
+    >>> ident.estimate_delay(u, y_delayed, max_delay=10)
+    3
     """
     md = check_int(max_delay, "max_delay", 0)
     L = lags if lags is not None else max(40, 2 * md + 10)

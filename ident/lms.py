@@ -20,7 +20,7 @@ __all__ = ["LMS", "lms_batch", "kung"]
 
 
 class LMS:
-    """Adaptive FIR filter ``y_hat(k) = w . [u(k), u(k-1), ..., u(k-L+1)]`` updated by (normalised) LMS.
+    """Adaptive FIR filter ``y_hat(k) = w^T [u(k), u(k-1), ..., u(k-L+1)]`` updated by (normalised) LMS.
 
     ``w <- (1 - mu * leakage) w + step * e * u_window`` with ``e = y - y_hat`` and ``step = mu`` (plain
     LMS, stable for ``0 < mu < 2 / (L * var(u))``) or ``mu / (eps + |u_window|^2)`` (normalised, stable for
@@ -102,6 +102,19 @@ def lms_batch(u, y, taps: int, mu: float = 0.5, normalized: bool = True, leakage
         Final impulse-response estimate (of the delay-free system).
     y_hat : ndarray, shape (N - delay,)
         A-priori predictions along the record.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import ident
+    >>> G = ct.c2d(ct.tf([12.517, 36.374], [1, 5.583, 21.3]), 0.02)  # published P2-A2 test-bed model, 50 Hz
+    >>> u = np.random.default_rng(0).choice([-1.0, 1.0], 3000)        # a random binary input, %
+    >>> y = ct.forced_response(G, U=u).y[0]                            # pitch rate, deg/s (noise-free)
+
+    >>> h, y_hat = ident.lms_batch(u, y, taps=60)
+    >>> h_true = ct.impulse_response(G, T=np.arange(60) * 0.02).y[0, 0] * 0.02
+    >>> bool(np.max(np.abs(h - h_true)) < 0.01 * np.max(np.abs(h_true)))  # the taps converge to the impulse response
+    True
     """
     u2, y2 = check_io(u, y, min_samples=taps + 1 + delay, what="lms_batch")
     if u2.shape[1] != 1 or y2.shape[1] != 1:
@@ -138,6 +151,16 @@ def kung(h, order: int | None = None, dt: float = 1.0, energy: float = 0.99, thr
     -------
     IdentifiedModel
         ``method = "kung"``, ``singular_values`` the Hankel singular values.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import ident
+    >>> G = ct.c2d(ct.tf([12.517, 36.374], [1, 5.583, 21.3]), 0.02)
+    >>> h = ct.impulse_response(G, T=np.arange(60) * 0.02).y[0, 0] * 0.02  # Markov parameters h[k]
+    >>> m = ident.kung(h, dt=0.02)              # order from the Hankel singular values
+    >>> m.sys.nstates
+    2
     """
     H = np.asarray(h, dtype=float)
     if H.ndim == 1:

@@ -167,6 +167,21 @@ def load_log(path, columns: Sequence[str] | None = None, *, column_map: Mapping[
     DataError
         Missing file or column, non-numeric data, non-increasing / non-uniform time, gaps, NaN (naming the
         row and column).
+
+    Examples
+    --------
+    A CSV file with its own column names:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from rotorlab import ident
+    >>> path = Path(tempfile.mkdtemp()) / "flight.csv"
+    >>> t = np.arange(500) * 0.02
+    >>> np.savetxt(path, np.column_stack([t, np.sin(t), np.cos(t)]), delimiter=",", header="time,elev,gyro_y",
+    ...            comments="")
+    >>> log = ident.load_log(path, column_map={"t": "time", "u_lon": "elev", "q": "gyro_y"})
+    >>> log.columns, log.dt, len(log["q"])
+    (['u_lon', 'q'], 0.02, 500)
     """
     path = Path(path)
     source = str(path)
@@ -235,6 +250,23 @@ def write_log(path, table_dict: Mapping[str, Sequence[float]], units: Mapping[st
         ``{column: unit}``; ``t`` defaults to ``s``.
     meta : dict, optional
         JSON-serialisable run information.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from rotorlab import ident
+    >>> t = np.arange(500) * 0.02
+    >>> path = ident.write_log(Path(tempfile.mkdtemp()) / "log.parquet",
+    ...                        {"t": t, "u_lon": np.sign(np.sin(t)), "q": np.cos(t)}, units={"u_lon": "%", "q": "deg/s"})
+    >>> log = ident.load_log(path)
+    >>> log.columns, log.units["q"], log.dt
+    (['u_lon', 'q'], 'deg/s', 0.02)
     """
     if TIME_COLUMN not in table_dict:
         raise DataError(f"write_log {path}: the table needs a time column '{TIME_COLUMN}'")
@@ -256,6 +288,36 @@ def check_identifiable(log: Log, u_cols, y_cols, order: int, horizon: int, futur
     observability matrix must have rank ``order``); the data Hankel matrices have at least as many
     columns as rows, ``N - past - future + 1 >= (past + future) (m + p)``, so their LQ factor is
     well posed.
+
+    Parameters
+    ----------
+    log : Log
+        From :func:`load_log`.
+    u_cols, y_cols : sequence of str
+        Input and output columns.
+    order : int
+        Model order.
+    horizon : int
+        Past horizon (block rows).
+    future : int, optional
+        Future horizon (default ``horizon``).
+
+    Returns
+    -------
+    None
+        Returns when the log can support the model; raises otherwise.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> from rotorlab.ident.logs import Log
+    >>> t = np.arange(100) * 0.02
+    >>> log = Log(t, {"u": np.sign(np.sin(3 * t)), "q": np.cos(t)}, {"u": "%", "q": "deg/s"})
+    >>> ident.check_identifiable(log, ["u"], ["q"], order=2, horizon=10)     # 100 samples are enough for s = 10
+    >>> ident.check_identifiable(log, ["u"], ["q"], order=2, horizon=40)
+    Traceback (most recent call last):
+    ...
+    rotorlab.errors.DataError: ...
     """
     u, y = log.to_arrays(u_cols, y_cols)
     N, m = u.shape

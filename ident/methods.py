@@ -81,7 +81,27 @@ METHODS: dict[str, Method] = {m.name: m for m in (
 
 
 def get_method(name: str) -> Method:
-    """The method called ``name`` (UnknownNameError listing the valid ones)."""
+    """The method called ``name`` (UnknownNameError listing the valid ones).
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`METHODS` (``rotorlab ident --method`` takes the same names).
+
+    Returns
+    -------
+    Method
+        Its entry: the fitting function and the settings it takes.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> m = ident.get_method("pbsid")
+    >>> m.name
+    'pbsid'
+    >>> sorted(ident.METHODS)
+    ['hinf-match', 'lms-kung', 'oe-greybox', 'pbsid', 'pi-moesp']
+    """
     if name not in METHODS:
         raise UnknownNameError("identification method", name, METHODS)
     return METHODS[name]

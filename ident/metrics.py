@@ -24,6 +24,13 @@ def vaf(y, y_hat) -> np.ndarray:
     Returns
     -------
     ndarray, shape (p,)
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> y = np.sin(np.linspace(0, 10, 500))
+    >>> print(ident.vaf(y, 0.9 * y))            # 10 % gain error: 1 - 0.01 var(y) / var(y)
+    [99.]
     """
     y2, yh = as_columns(y, "y"), as_columns(y_hat, "y_hat")
     if y2.shape != yh.shape:
@@ -52,6 +59,18 @@ def simulate(model: IdentifiedModel, u, x0=None, y=None, n_x0: int | None = None
     Returns
     -------
     ndarray, shape (N, p)
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import ident
+    >>> G = ct.c2d(ct.tf([12.517, 36.374], [1, 5.583, 21.3]), 0.02)  # published P2-A2 test-bed model, 50 Hz
+    >>> u = np.random.default_rng(0).choice([-1.0, 1.0], 3000)        # a random binary input, %
+    >>> y = ct.forced_response(G, U=u).y[0]                            # pitch rate, deg/s (noise-free)
+
+    >>> m = ident.pbsid(u, y, order=2, past=20, future=10, dt=0.02)
+    >>> print(np.round(ident.vaf(y, ident.simulate(m, u)), 3))
+    [100.]
     """
     u2 = as_columns(u, "u")
     full = model.with_delay()  # the delay line is part of the state, so its unknown contents are fitted too

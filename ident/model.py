@@ -119,8 +119,8 @@ _MAX_TF_ORDER = 10
 def lsim_fast(A, B, C, D, u, x0=None) -> np.ndarray:
     """Simulate a discrete state-space model, ``u`` (N, m) -> ``y`` (N, p).
 
-    scipy.signal.dlsim steps through time in Python (about 20 ms for 7000 samples); the bootstrap runs a
-    thousand such simulations, so for the low orders identification produces the response is built from
+    scipy.signal.dlsim steps through time in a Python loop; the bootstrap runs a thousand such simulations,
+    so for the low orders identification produces the response is built from
     compiled all-pole filtering (:func:`state_regressors`). Higher orders fall back to dlsim, whose state
     recursion stays well conditioned where polynomial coefficients would not.
     """

@@ -69,6 +69,22 @@ def save_model(path, model, vaf=None, extra=None, *, delay_s: float | None = Non
         Signal names.
     units : dict, optional
         ``{signal: unit}``.
+
+    Returns
+    -------
+    Path
+        The file written (``rotorlab tune --model`` and ``rotorlab bode`` read it).
+
+    Examples
+    --------
+    >>> import tempfile, control as ct
+    >>> from pathlib import Path
+    >>> from rotorlab import ident
+    >>> G = ct.c2d(ct.tf([12.517, 36.374], [1, 5.583, 21.3]), 0.02)
+    >>> path = ident.save_model(Path(tempfile.mkdtemp()) / "p2a2.json", G, delay_s=0.06, input=["u_lon"], output=["q"])
+    >>> sys, delay_s, meta = ident.load_model(path)
+    >>> delay_s, sys.dt, meta["input"]
+    (0.06, 0.02, ['u_lon'])
     """
     sys, d_s, method, settings, K = _parts(model)
     if delay_s is not None:
@@ -132,6 +148,11 @@ def _number(doc, key, file, default=None, minimum=None):
 def load_model(path) -> tuple[ct.StateSpace, float, dict]:
     """Read a model JSON (state-space or transfer-function form).
 
+    Parameters
+    ----------
+    path : str or Path
+        A model JSON written by :func:`save_model` (``rotorlab ident --out``) or by hand.
+
     Returns
     -------
     sys : control.StateSpace
@@ -145,6 +166,19 @@ def load_model(path) -> tuple[ct.StateSpace, float, dict]:
     ------
     ConfigError
         Naming the file and the field at fault.
+
+    Examples
+    --------
+    The ``{"num", "den", "dt", "delay_s"}`` form, as a hand-written file:
+
+    >>> import json, tempfile
+    >>> from pathlib import Path
+    >>> from rotorlab import ident
+    >>> path = Path(tempfile.mkdtemp()) / "model.json"
+    >>> _ = path.write_text(json.dumps({"num": [12.517, 36.374], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06}))
+    >>> sys, delay_s, meta = ident.load_model(path)
+    >>> sys.nstates, sys.dt, delay_s
+    (2, 0.0, 0.06)
     """
     path = Path(path)
     file = str(path)

@@ -75,6 +75,18 @@ def pitch_structure(I_yy: float = 0.25, fixed=None, **values) -> GreyBoxModel:
     coefficients for the five unknowns ``(M_q, M_u, J, k, c)``, identifiable with ``I_yy`` known. The
     common-mode angle ``theta = theta_P`` is an unobservable zero eigenvalue of the published 4-state form;
     fits and norms handle it (variable projection, minimal realisations).
+
+    Returns
+    -------
+    GreyBoxModel
+        Input the pitch command, output the IMU-mount rate ``q_P``; ``I_yy`` and the delay fixed by default.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> m = ident.pitch_structure()
+    >>> m.free, m.outputs
+    (['M_q', 'M_u', 'J', 'k', 'c'], ['q_P'])
     """
     params = _apply([
         Param("I_yy", I_yy, 1e-6, INF, "kg m^2", fixed=True),
@@ -162,6 +174,18 @@ def tuhh_axis_structure(axis: str = "pitch", outputs=("angle",), K: float | None
     identifiable: ``K`` and ``J`` scale the response identically. As TUHH did, ``K`` is fixed from the
     a-priori thrust/torque data and ``J`` is estimated, so ``J_hat = K / (K/J)_hat``; a fit with both free
     reports them as not identifiable.
+
+    Returns
+    -------
+    GreyBoxModel
+        Input the motor command ``b``, outputs as asked; ``K`` fixed by default.
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> m = ident.tuhh_axis_structure("pitch", outputs=("angle", "rate"))
+    >>> m.free, m.outputs
+    (['J', 'p', 'Td'], ['pitch_angle', 'pitch_rate'])
     """
     if axis not in TUHH_TABLE:
         raise KeyError(f"unknown axis '{axis}'; valid axes: {', '.join(TUHH_TABLE)}")
@@ -216,6 +240,26 @@ def rigid_rig_structure(fixed=None, **values) -> GreyBoxModel:
     pendulum test) and ``d_b`` (bearing spec) are fixed, leaving ``(d_a, k, c, M_u)``, locally identifiable.
     Defaults reproduce the published P2-A2 test-bed model ``12.517 (s + 2.906)/(s^2 + 5.583 s + 21.3)``
     (doc 000) with ``J_a = 0.25`` and ``d_b = 1.2`` assumed; delay ``delay_s`` 0.06 s (fixed).
+
+    Parameters
+    ----------
+    fixed : sequence of str, optional
+        Parameters kept at their values during a fit (default ``J_a``, ``d_b`` and the delay).
+    **values : float
+        Initial (or fixed) values: ``J_a``, ``d_a``, ``d_b``, ``k``, ``c``, ``M_u``, ``delay_s``.
+
+    Returns
+    -------
+    GreyBoxModel
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import ident
+    >>> m = ident.rigid_rig_structure()
+    >>> tf = ct.ss2tf(m.build(m.values()))                     # the published test-bed model at the defaults
+    >>> print(np.round(tf.num[0][0], 2), np.round(tf.den[0][0], 2))
+    [12.52 36.37] [ 1.    5.58 21.3 ]
     """
     params = _apply([
         Param("J_a", 0.25, 1e-6, INF, "kg m^2"),
@@ -254,7 +298,26 @@ def rigid_rig_tf_coefficients(theta) -> dict[str, float]:
 
 def rate_tf_structure(fixed=None, **values) -> GreyBoxModel:
     """The published black-box rate form ``q/u = K (s + z)/(s^2 + a s + b) e^(-s delay_s)`` (doc 000 PBSID
-    models), parametrised directly; defaults are the P2-A2 test-bed model, delay 0.06 s fixed."""
+    models), parametrised directly; defaults are the P2-A2 test-bed model, delay 0.06 s fixed.
+
+    Parameters
+    ----------
+    fixed : sequence of str, optional
+        Parameters kept at their values during a fit (default: the delay).
+    **values : float
+        Initial (or fixed) values by name: ``K``, ``z``, ``a``, ``b``, ``delay_s``.
+
+    Returns
+    -------
+    GreyBoxModel
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> m = ident.rate_tf_structure()
+    >>> m.free, m.param("b").value
+    (['K', 'z', 'a', 'b'], 21.3)
+    """
     params = _apply([
         Param("K", 12.517, -INF, INF, "(deg/s)/(% s)"),
         Param("z", 2.906, -INF, INF, "1/s"),
@@ -270,7 +333,26 @@ def rate_tf_structure(fixed=None, **values) -> GreyBoxModel:
 
 
 def first_order_structure(fixed=None, **values) -> GreyBoxModel:
-    """First-order lag with delay ``K e^(-s delay_s)/(tau s + 1)`` (motor speed per throttle command)."""
+    """First-order lag with delay ``K e^(-s delay_s)/(tau s + 1)`` (motor speed per throttle command).
+
+    Parameters
+    ----------
+    fixed : sequence of str, optional
+        Parameters kept at their values during a fit.
+    **values : float
+        Initial (or fixed) values by name: ``K``, ``tau``, ``delay_s``.
+
+    Returns
+    -------
+    GreyBoxModel
+
+    Examples
+    --------
+    >>> from rotorlab import ident
+    >>> m = ident.first_order_structure(K=2.0, tau=0.05)
+    >>> m.names, m.free
+    (['K', 'tau', 'delay_s'], ['K', 'tau', 'delay_s'])
+    """
     params = _apply([
         Param("K", 1.0, -INF, INF, "output per input"),
         Param("tau", 0.05, 1e-5, 100.0, "s"),

@@ -29,6 +29,7 @@ COMMANDS = {
     "bode": "bode",
     "compare": "compare",
     "vehicle": "vehicle",
+    "export-mjcf": "export_mjcf",
 }
 
 

@@ -45,6 +45,10 @@ def pyplot():
     return plt
 
 
+#: dash pattern of the i-th run in :func:`plot_runs` (solid first)
+RUN_DASHES = ("-", (0, (5, 2)), (0, (2, 1.5)), (0, (6, 2, 1.5, 2)))
+
+
 def figure(nrows: int = 1, ncols: int = 1, height_in: float = 4.0, **kw):
     """A figure of :data:`FIG_WIDTH_IN` with constrained layout (no clipped labels) and gridded axes."""
     plt = pyplot()
@@ -63,6 +67,11 @@ def save(fig, path) -> Path:
         fig.savefig(tmp, dpi=DPI, format="png", metadata={"Software": None})
     pyplot().close(fig)
     return path
+
+
+def legend_outside(ax, **kw):
+    """The legend of ``ax`` right of its axes, never over the data (constrained layout makes room for it)."""
+    return ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kw)
 
 
 def label(name: str, unit: str) -> str:
@@ -136,7 +145,12 @@ def plot_runs(runs, path, signals=None, title: str | None = None) -> Path:
                 raise DataError(f"no signal '{c}' in the run log(s); signals: {', '.join(valid)}")
     fig, axs = figure(len(panels), 1, height_in=1.2 + 2.0 * len(panels), sharex=True)
     axs = axs[:, 0]
+    n = len(runs)
     for i, run in enumerate(runs):
+        # runs that nearly coincide (two optimal gain sets) must both stay visible: each later run is drawn
+        # thinner, on top, with its own dash pattern, so a trace under another still shows at its edges
+        dash = RUN_DASHES[i % len(RUN_DASHES)]
+        width = 2.4 - 1.4 * i / max(n - 1, 1) if n > 1 else 1.1
         cols = run["columns"]
         t = cols["t"]
         lab = run.get("label") or run["name"]
@@ -154,17 +168,21 @@ def plot_runs(runs, path, signals=None, title: str | None = None) -> Path:
                 elif shared:
                     style = dict(color="0.35", lw=1.1)
                 else:
-                    style = dict(color=f"C{(i + j) % 10}", lw=1.1)
+                    style = dict(color=f"C{(i + j) % 10}", lw=width, ls=dash, zorder=2 + i)
                 name = c + (" (all runs)" if shared else "") if len(runs) == 1 or shared else f"{c}: {lab}"
                 ax.plot(t, cols[c], label=name, **style)
         notes = run["info"].get("notes") or {}
         sw = notes.get("switch_s")
-        if sw is not None:
+        # runs that all switch at one time share one line (coloured lines on the same x would hide each other)
+        shared_switch = len(runs) > 1 and all(((r["info"].get("notes") or {}).get("switch_s")) == sw for r in runs)
+        if sw is not None and not (shared_switch and i > 0):
             to = notes.get("switch_to") or "the switched set"
+            tos = ", ".join(dict.fromkeys(str((r["info"].get("notes") or {}).get("switch_to")) for r in runs))
+            text = (f"gain switch at {sw:g} s, each run to its set ({tos})" if shared_switch else
+                    f"gain switch to {to} at {sw:g} s" + (f" ({lab})" if len(runs) > 1 else ""))
             for ax in axs:
-                ax.axvline(sw, color=f"C{i % 10}", ls=":", lw=1.5,
-                           label=f"gain switch to {to} at {sw:g} s" + (f" ({lab})" if len(runs) > 1 else "")
-                           if ax is axs[0] else None)
+                ax.axvline(sw, color="k" if shared_switch else f"C{i % 10}", ls=":", lw=1.5,
+                           label=text if ax is axs[0] else None)
     u0 = runs[0]["units"]
     for ax, panel in zip(axs, panels):
         unit = next((u0.get(c) for c in panel if u0.get(c)), "")
@@ -172,7 +190,7 @@ def plot_runs(runs, path, signals=None, title: str | None = None) -> Path:
         # several signals in a panel (wind_u, wind_v, wind_w): their common stem names the axis, the legend the rest
         stem = os.path.commonprefix(names).rstrip("_") if len(names) > 1 else names[0]
         ax.set_ylabel(label(stem or names[0], unit))
-        ax.legend(fontsize=8, loc="best", ncol=min(4, len(ax.get_lines())))
+        legend_outside(ax)
     axs[-1].set_xlabel(label("time t", "s"))
     info = runs[0]["info"]
     axs[0].set_title(title or (f"{info.get('scenario', '')} on {info.get('vehicle', '')} ({info.get('scene', '')})"
@@ -204,6 +222,6 @@ def plot_bode(models, path, w_rad_s=None, title: str | None = None) -> Path:
     am.set_ylabel(f"magnitude [dB re 1 {units.pop() if len(units) == 1 else 'output unit per input unit'}]")
     ap.set_ylabel(label("phase", "deg"))
     ap.set_xlabel(label("frequency", "rad/s"))
-    am.legend(fontsize=8)
+    legend_outside(am)
     am.set_title(title or "Bode diagram")
     return save(fig, path)

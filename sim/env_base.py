@@ -79,11 +79,14 @@ def _disturbances(dists, field: str) -> list:
 
 class RotorlabEnv(gym.Env):
     """Base class: subclasses define the spaces, ``_apply(action)``, ``_observe()``, ``_reward()`` and the
-    episode set-up ``_start_episode(options)``.
+    episode set-up ``_start_episode(options)``. The parameters below are common to every rotorlab env.
 
-    Parameters (common to every rotorlab env)
-    ----------------------------------------
+    Parameters
+    ----------
+    scene : str
+        Scene name (``pitch-rig``, ``roll-rig``, ``free-flight``).
     vehicle : str, path or VehicleSpec
+        Vehicle name or TOML path.
     sensor_noise : bool
         Seeded IMU noise and bias.
     disturbances : sequence

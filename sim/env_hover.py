@@ -1,39 +1,75 @@
 """``rotorlab/Hover-v0``: position hold in free flight as a Gymnasium env.
 
-One agent step = one flight-software tick (the vehicle's rate: 50 Hz ANTEOS, 250 Hz TUHH) on the same :class:`~rotorlab.sim.simulator.Simulator` as
-headless runs (free-flight scene, hover keyframe at 5 m).
+**Description.** The vehicle's twin in free flight at 5 m (the free-flight scene), flown on the same
+:class:`~rotorlab.sim.simulator.Simulator` as headless runs; one agent step is one flight-software tick (the vehicle's
+rate: 50 Hz ANTEOS, 250 Hz TUHH). The task is to reach and hold a target position.
 
-Actions (float32 Box(-1, 1), shape (4,)), scaled to physical units (``info['action_physical']``)
-------------------------------------------------------------------------------------------------
-``control='commands'`` (default)
-    ``[collective, roll, pitch, yaw]`` axis commands in % on the flight software's absolute scale (the mixer
-    turns them into rotor commands): collective ``50 + 50 a`` in [0, 100] % (the hover collective is not at
-    a = 0: ``env.unwrapped.normalize_action([u_hover, 0, 0, 0])`` gives it), roll/pitch/yaw ``a * u_limit``
-    within the vehicle's command limit.
-``control='attitude'``
-    ``[collective %, roll set-point deg, pitch set-point deg, heading set-point deg]``: ``50 + 50 a`` %,
-    ``a * max_tilt_deg`` and ``a * 180`` deg; the vehicle's attitude cascade (:class:`FlightSoftware`, its
-    ``gains``) closes the attitude loops, or the discrete controllers given as ``controller=`` (a
-    :class:`~rotorlab.sim.control.statespace.ControllerSpec`, a controller file or a list; e.g.
-    ``rotorlab.designs.design('hinf-loopshaping', 'tuhh-quad')``; or an autopilot's own laws,
-    ``rotorlab.designs.resolve_controller('px4:defaults', None)``) in its place on the commands they set.
+**Action space.** ``Box(-1, 1, (4,), float32)``, scaled affinely to physical units (``info['action_physical']``;
+``env.unwrapped.normalize_action(u)`` converts back). Components outside [-1, 1] are clipped
+(``info['action_clipped']``); a non-finite action raises ``ValueError`` and leaves the episode unchanged.
 
-Out-of-range actions are clipped component-wise to [-1, 1] (``info['action_clipped']``); non-finite actions
-raise ``ValueError`` and leave the episode untouched.
+===  ========================================  ========  =======  ====
+Num  Action, ``control='commands'`` (default)  Min       Max      Unit
+===  ========================================  ========  =======  ====
+0    collective command, ``50 + 50 a``         0         100      %
+1    roll command                              -u_limit  u_limit  %
+2    pitch command                             -u_limit  u_limit  %
+3    yaw command                               -u_limit  u_limit  %
+===  ========================================  ========  =======  ====
 
-Observations (float32 Box, shape (18,), +6 with ``privileged``)
---------------------------------------------------------------
-``[phi, theta, psi (deg), p, q, r (deg/s), ax, ay, az (m/s^2, body FRD), x, y, z (m, NED), vx, vy, vz (m/s,
-NED), x_ref, y_ref, z_ref (m, NED)]``: IMU attitude estimate, gyro and accelerometer (through the elastic
-mount, seeded noise and bias), the position sensor, and the target. ``privileged`` appends the true airframe
-roll, pitch, yaw (deg) and p, q, r (deg/s). Readings beyond the bounds saturate.
+===  =================================  =========  ========  ====
+Num  Action, ``control='attitude'``     Min        Max       Unit
+===  =================================  =========  ========  ====
+0    collective command, ``50 + 50 a``  0          100       %
+1    roll set-point                     -max_tilt  max_tilt  deg
+2    pitch set-point                    -max_tilt  max_tilt  deg
+3    heading set-point                  -180       180       deg
+===  =================================  =========  ========  ====
 
-Task and reward
----------------
-Hold the target, drawn at reset within +-``target_range_m`` of the hover point on each axis (or given with the
-``target_m`` reset option, NED). Per step ``r = -(|position error| / 1 m)^2 - effort_weight e`` with
-``e = ((u_col - u_hover) / 100)^2 + sum((u_axis / limit)^2)``; a crash or a flip terminates with a penalty
-of 100. Reset options: ``randomize``, ``disturbances``, ``target_m``.
+The commands are on the flight software's absolute scale (the mixer turns them into rotor commands); the hover
+collective is not at ``a = 0`` (``normalize_action([u_hover, 0, 0, 0])`` gives it). ``u_limit`` is the vehicle's
+command limit, ``max_tilt`` the ``max_tilt_deg`` argument (default 30). In ``'attitude'`` mode the vehicle's
+attitude cascade (:class:`~rotorlab.sim.control.flight_software.FlightSoftware`, its ``gains``) closes the attitude
+loops, or the discrete controllers given as ``controller=`` (a
+:class:`~rotorlab.sim.control.statespace.ControllerSpec`, a controller file or a list; e.g.
+``rotorlab.designs.design('hinf-loopshaping', 'tuhh-quad')``, or an autopilot's own laws,
+``rotorlab.designs.resolve_controller('px4:defaults', None)``) on the commands they set.
+
+**Observation space.** ``Box(float32)``, shape (18,), (24,) with ``privileged=True``; readings beyond the bounds
+saturate there.
+
+=====  ====================================================================  =====  ====  =====
+Num    Observation                                                           Min    Max   Unit
+=====  ====================================================================  =====  ====  =====
+0-2    roll, pitch, yaw: IMU attitude estimate (noise, bias, elastic mount)  -180   180   deg
+3-5    p, q, r: IMU gyro, body FRD                                           -1000  1000  deg/s
+6-8    ax, ay, az: IMU accelerometer, body FRD                               -100   100   m/s^2
+9-11   x, y, z: position (noise-free), NED                                   -50    50    m
+12-14  vx, vy, vz: velocity (noise-free), NED                                -30    30    m/s
+15-17  target x, y, z, NED                                                   -50    50    m
+18-20  true airframe roll, pitch, yaw (``privileged``)                       -180   180   deg
+21-23  true airframe p, q, r (``privileged``)                                -1000  1000  deg/s
+=====  ====================================================================  =====  ====  =====
+
+**Rewards.** Per step ``r = -(|position error| / 1 m)^2 - effort_weight e`` with
+``e = ((u_col - u_hover) / 100)^2 + sum((u_axis / u_limit)^2)``; a crash or a flip costs 100 more.
+
+**Starting state.** The hover keyframe at 5 m: level, at rest, every rotor at its hover trim with its lag filter and
+delay line settled; sensor bias drawn from the seed; the vehicle's parameters drawn from ``randomize``, if given.
+The target is drawn uniform within +-``target_range_m`` (default 1 m) of the hover point on each axis, or given
+with ``reset(options={"target_m": (x, y, z)})`` (NED, within +-50 m, above ground).
+
+**Episode end.** Terminated when the airframe tilts beyond 80 deg (a flip), hits the floor or the physics diverges
+(``info['stopped']`` says which); truncated after ``episode_s`` (default 10 s: 500 steps at 50 Hz, the registered
+``max_episode_steps``). ``step`` after the end raises until ``reset``.
+
+**Arguments.** ``gymnasium.make("rotorlab/Hover-v0", **kwargs)`` with the parameters of :class:`HoverEnv` and the
+common ones of :class:`~rotorlab.sim.env_base.RotorlabEnv` (``vehicle``, ``sensor_noise``, ``disturbances``,
+``randomize``, ``episode_s``, ``effort_weight``, ``privileged``, ``render_mode='rgb_array'``). Reset options:
+``randomize``, ``disturbances``, ``target_m``.
+
+**Version history.** v0: the first version (normalised actions, IMU and position observations, the attitude mode
+with the controller seam).
 """
 
 from __future__ import annotations

@@ -1,42 +1,62 @@
 """``rotorlab/PitchRig-v0`` and ``rotorlab/RollRig-v0``: the 1-DoF gimbal test-bed as a Gymnasium env.
 
-One agent step = one flight-software tick (the vehicle's rate: 50 Hz ANTEOS, 250 Hz TUHH; physics at 1 kHz) on the same
-:class:`~rotorlab.sim.simulator.Simulator` as headless runs.
+**Description.** The vehicle's twin clamped to the published 1-DoF test-bed (pitch or roll rig: a light ring on a
+greased bearing), flown on the same :class:`~rotorlab.sim.simulator.Simulator` as headless runs. One agent step is
+one flight-software tick (the vehicle's rate: 50 Hz ANTEOS, 250 Hz TUHH; physics at 1 kHz). The task is to track
+angle set-point steps (``task='tracking'``) or to hold the rig level against disturbances (``task='regulation'``).
 
-Actions (float32 Box(-1, 1), shape (1,)), scaled to physical units (``info['action_physical']``)
-------------------------------------------------------------------------------------------------
-``control='command'`` (default)
-    The axis command (pitch or roll control variable): a = 1 is the vehicle's command limit in % (+-30 % on
-    the P2-A2, +-40 % on the A2-MINI/B), ``physical = a * u_limit_pct``.
-``control='inner_loop'``
-    The rate set-point: ``physical = a * rate_limit_dps`` deg/s (default: the vehicle's rate limit); the
-    vehicle's inner PID (its ``gains`` set, :class:`~rotorlab.sim.control.pid.DiscretePID` with clamping
-    anti-windup) closes the rate loop.
-``control='controller'``
-    A residual command on top of a discrete controller flown in place of the cascade (``controller=``: a
-    :class:`~rotorlab.sim.control.statespace.ControllerSpec` or a controller file that sets the axis command,
-    e.g. ``rotorlab.designs.design('hinf-loopshaping-aw', 'tuhh-quad', axes=('pitch',))``): the command is the
-    controller's output plus ``a * u_limit_pct``, saturated at the limit; ``a = 0`` flies the controller alone.
+**Action space.** ``Box(-1, 1, (1,), float32)``, scaled affinely to physical units (``info['action_physical']``;
+``env.unwrapped.normalize_action(u)`` converts back). Components outside [-1, 1] are clipped
+(``info['action_clipped']``); a non-finite action raises ``ValueError`` and leaves the episode unchanged.
 
-Actions outside [-1, 1] are clipped component-wise (``info['action_clipped']`` says so); non-finite actions
-raise ``ValueError`` and leave the episode untouched. ``env.unwrapped.normalize_action(u)`` converts a
-physical action.
+===  =======================================================  ===========  ===========  =====
+Num  Action (by ``control``)                                  Min          Max          Unit
+===  =======================================================  ===========  ===========  =====
+0    ``'command'``: the axis command                          -u_limit     +u_limit     %
+0    ``'inner_loop'``: the rate set-point (inner PID closed)  -rate_limit  +rate_limit  deg/s
+0    ``'controller'``: a residual on the controller's output  -u_limit     +u_limit     %
+===  =======================================================  ===========  ===========  =====
 
-Observations (float32 Box; units deg, deg/s, %)
------------------------------------------------
-``[angle, rate, set-point, last action]``: the IMU's attitude estimate and gyro rate of the rig axis
-(through the elastic IMU mount, with seeded noise and bias when ``sensor_noise``), the angle set-point, and
-the last applied (clipped) action in physical units (% or deg/s). With ``privileged=True`` the true airframe angle and rate follow. Bounds:
-angle and set-point +-90 deg, rates +-1000 deg/s (a gyro's range: readings saturate there).
+``u_limit`` is the vehicle's command limit (30 % P2-A2, 40 % A2-MINI/B, ``[commands] limit_pct``), ``rate_limit``
+its rate limit (``[commands] rate_limit_dps``, or ``rate_limit_dps=``). In ``'inner_loop'`` mode the vehicle's inner
+PID (its ``gains``, :class:`~rotorlab.sim.control.pid.DiscretePID` with clamping anti-windup) closes the rate loop;
+in ``'controller'`` mode a discrete controller (``controller=``, a
+:class:`~rotorlab.sim.control.statespace.ControllerSpec` or file setting the axis command) is flown and the action
+adds to its output before the saturation (``a = 0`` flies the controller alone).
 
-Task and reward
----------------
-``task='tracking'``: the set-point steps every ``setpoint_period_s`` to a value uniform in
-+-``setpoint_max_deg``; ``task='regulation'``: set-point 0, for disturbance rejection (add ``disturbances``).
-Per step ``r = -((angle_true - set-point) / 10 deg)^2 - effort_weight (u / u_limit)^2`` with ``u`` the axis
-command actually sent; reaching the rig stop terminates the episode with a penalty of 100.
+**Observation space.** ``Box(float32)``, shape (4,), (6,) with ``privileged=True``; readings beyond the bounds
+saturate there.
 
-Reset options: ``randomize``, ``disturbances``, ``task``, ``setpoint_deg`` (a constant set-point, deg).
+===  =============================================================  ======  ======  ==========
+Num  Observation                                                    Min     Max     Unit
+===  =============================================================  ======  ======  ==========
+0    rig angle, IMU attitude estimate (noise, bias, elastic mount)  -90     90      deg
+1    rig-axis rate, IMU gyro                                        -1000   1000    deg/s
+2    angle set-point                                                -90     90      deg
+3    last applied (clipped) action, physical                        -bound  +bound  % or deg/s
+4    true airframe angle (``privileged``)                           -90     90      deg
+5    true airframe rate (``privileged``)                            -1000   1000    deg/s
+===  =============================================================  ======  ======  ==========
+
+**Rewards.** Per step ``r = -((angle_true - set-point) / 10 deg)^2 - effort_weight (u / u_limit)^2``, with ``u`` the
+axis command actually sent; reaching the rig stop costs 100 more.
+
+**Starting state.** The hover keyframe: the rig level (0 deg) at rest, every rotor at its trim with its lag filter
+and delay line settled; sensor bias drawn from the seed; the vehicle's parameters drawn from ``randomize``, if
+given. Tracking: the set-point sequence (a new value uniform in +-``setpoint_max_deg`` every ``setpoint_period_s``)
+is drawn at reset; ``reset(options={"setpoint_deg": x})`` holds ``x`` instead.
+
+**Episode end.** Terminated when the rig reaches its stop (the vehicle's ``[rig] stop_deg``, 30 deg on the ANTEOS
+twins) or the physics diverges (``info['stopped']`` says which); truncated after ``episode_s`` (default 10 s: 500
+steps at 50 Hz, the registered ``max_episode_steps``). ``step`` after the end raises until ``reset``.
+
+**Arguments.** ``gymnasium.make("rotorlab/PitchRig-v0", **kwargs)`` (``RollRig-v0``: ``axis='roll'``) with the
+parameters of :class:`RigEnv` and the common ones of :class:`~rotorlab.sim.env_base.RotorlabEnv`
+(``vehicle``, ``sensor_noise``, ``disturbances``, ``randomize``, ``episode_s``, ``effort_weight``, ``privileged``,
+``render_mode='rgb_array'``). Reset options: ``randomize``, ``disturbances``, ``task``, ``setpoint_deg``.
+
+**Version history.** v0: the first version (normalised actions, the IMU observation through the elastic mount,
+the published test-bed, the controller seam).
 """
 
 from __future__ import annotations

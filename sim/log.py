@@ -39,8 +39,8 @@ class RunLog:
         self._nan_fill = [np.nan] * (len(self._names) - 1)
         self._buf = np.full((capacity, len(self._names)), np.nan)
         # rows not yet in _buf, one flat list of floats row after row: a list extend per tick, the array filled
-        # ROW_CHUNK rows at a time (a numpy store per tick costs several times the extend; numpy converts a flat
-        # list in about 60 % of the time of a list of row lists, and a tick allocates no row list)
+        # ROW_CHUNK rows at a time (a numpy store per tick costs several times the extend; a flat list converts
+        # without numpy discovering a nested shape, and a tick allocates no row list)
         self._flat = self._buf.reshape(-1)  # a view: _buf is C-contiguous
         self._rows = []
         self._chunk_len = ROW_CHUNK * len(self._names)

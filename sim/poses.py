@@ -41,7 +41,8 @@ class PoseTrack:
         self.tendon_path = np.full((capacity, m.ntendon, max(self._maxwrap, 1), 3), np.nan)
         self.tendon_wrapnum = np.zeros((capacity, m.ntendon), dtype=int)
         self.n = 0
-        # views into MjData's buffers, taken once: every attribute access through the bindings costs about 1 us
+        # views into MjData's buffers, taken once: every attribute access through the bindings builds a new
+    # numpy view, which the per-tick recording would otherwise pay for each array
         d = sim.data
         self._d_xpos, self._d_xquat, self._d_site_xpos, self._d_site_xmat = d.xpos, d.xquat, d.site_xpos, d.site_xmat
         self._d_force = d.actuator_force

@@ -144,7 +144,8 @@ def set_rotor_ctrl(ctrl, rotor_pct, vehicle, thrust, spinup) -> None:
             ctrl[spinup] = c
         return
     c = vehicle.command_to_ctrl(rotor_pct).T
-    # indexed through the transposes (actuator index first): ctrl[..., ids] costs 10x more than ctrl[ids] per tick
+    # indexed through the transposes (actuator index first): a leading-axis index ctrl[ids] is a plain row
+    # selection, where ctrl[..., ids] goes through numpy's general fancy-indexing path on every tick
     ctrl.T[thrust] = c
     if spinup is not None:
         ctrl.T[spinup] = c
@@ -319,9 +320,9 @@ class Simulator:
         self._opt = self.model.opt
         self._wind_v = self._opt.wind
         # memoryviews for the scalar reads of every tick: their tolist() and item access run a few lines of
-        # CPython's core where numpy's indexing and pybind's attribute access run far more code, which MuJoCo's
-        # physics steps evict between two ticks (in the runner's loop the divergence check fell from 5-6 to 2-3 us
-        # a tick); the free joint's position, velocity and angular velocity are read in free flight only
+        # CPython's core where numpy's indexing and pybind's attribute access run far more code, code MuJoCo's
+        # physics steps evict from the caches between two ticks; the free joint's position, velocity and
+        # angular velocity are read in free flight only
         self._sd_mv = memoryview(d.sensordata)
         self._qpos_mv, self._ctrl_mv = memoryview(d.qpos), memoryview(d.ctrl)
         self._pos_mv, self._vel_mv, self._omega_mv = (memoryview(v) for v in (d.qpos[0:3], d.qvel[0:3], d.qvel[3:6]))
@@ -405,9 +406,9 @@ class Simulator:
         """Advance one control period: disturbances update at the tick, then the batched physics steps.
 
         The sensors are computed at the tick only, where they are read (the IMU is sampled at the tick):
-        MuJoCo skips them in the physics steps between (``mjDSBL_SENSOR``; with the accelerometer's extra
-        recursive Newton-Euler pass they cost 4-8 % of a step, measured on the rig and free-flight scenes). No
-        physics reads a sensor, so the state is the same bit for bit, and so are the sensors at the tick.
+        MuJoCo skips them in the physics steps between (``mjDSBL_SENSOR``), which also skips the accelerometer's
+        extra recursive Newton-Euler pass there. No physics reads a sensor, so the state is the same bit for bit,
+        and so are the sensors at the tick.
 
         ``controls_only``: the caller vouches that since the last tick or :meth:`reset` it changed nothing in
         MuJoCo's model or data but ``ctrl`` (the runner's loop). Then the first physics step reuses the position
@@ -421,8 +422,8 @@ class Simulator:
 
         :attr:`forces_at_tick` off (the runner, when nothing of the run reads them): the regrouped tick skips
         the acceleration pass at its end, which only the acceleration-stage readings need (the next physics
-        step computes that stage under the new controls anyway): about 2 % of a hover run's time (in-process
-        A/B, 20 pairs). The state, the position- and velocity-stage sensors and the physics are the same bit for
+        step computes that stage under the new controls anyway): one acceleration-stage pass fewer per tick. The
+        state, the position- and velocity-stage sensors and the physics are the same bit for
         bit; :meth:`measure` gives NaN for the accelerometer's channels, and a model with another
         acceleration-stage sensor (a disturbance's force sensor) keeps the pass.
         """

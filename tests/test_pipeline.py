@@ -429,7 +429,8 @@ def test_every_report_figure_is_labelled_with_units(run, monkeypatch, tmp_path):
     assert full["ylim"][0] <= py.min() and py.max() <= full["ylim"][1]
     # the hover comparison: the tuned trace runs the standard gains until the switch, which every panel marks
     hover = facts["standard_vs_tuned_hover.png"]["axes"]
-    assert any(lab.startswith("gain switch to tuned at") for lab in hover[0]["legend"])
+    # both runs switch at the same time: one line, its legend naming the sets switched to
+    assert any(lab.startswith("gain switch at") and "tuned" in lab for lab in hover[0]["legend"])
     assert all(ax["vlines"] for ax in hover)
 
 
@@ -469,7 +470,10 @@ def test_report_tables_are_well_formed_and_lead_with_the_key_metrics(run):
         assert len(rows) == len(labels) and all(r[2:].startswith(lab) for r, lab in zip(rows, labels)), rows
         assert all(re.search(r"\[[^\]]+\] \|", r) for r in rows), rows  # a unit on every key metric
         sets = list(s["validation"][sc])
-        assert cells(rows[0])[1:] == [f" {fmt(lookup(s['validation'][sc][n], keys[sc]))} " for n in sets]
+        # peak deviations are compared as magnitudes (summary.json keeps the sign), labelled so
+        size = abs if keys[sc].endswith("peak_deviation") else (lambda v: v)
+        assert cells(rows[0])[1:] == [f" {fmt(size(lookup(s['validation'][sc][n], keys[sc])))} " for n in sets]
+        assert ("(magnitude)" in rows[0]) == keys[sc].endswith("peak_deviation")
 
 
 def test_readme_headline_is_the_seeded_quick_run(run, repo_module):
@@ -509,3 +513,42 @@ def test_tuned_gains_reproduce_ref000_claims_p2a2(run):
     held = {c["claim"]: c["holds"] for c in s["claims"]}
     assert held["optimal tuning guarantees angular drift reduction (gust)"] is True
     assert held["control effort reduction with similar/better tracking (set-point steps)"] is True
+
+
+def test_report_opens_with_its_verdict_and_the_loops_of_every_set(run, capsys):
+    """Issue 30: the report's first paragraph names the set to fly and its gains file (which exists), says what
+    got worse and what was not checked; h_lim set by the model's low-frequency uncertainty is labelled so and
+    never counted as an improvement; every set's crossovers and margins are in the headline, equal to the goal
+    evaluation of the tune stage (another code path); the terminal prints the same verdict."""
+    from rotorlab.commands.pipeline import print_verdict
+    from rotorlab.pipeline.stages.report import MODEL_BOUND, headline_rows
+
+    out = run[0]
+    rep = stage_dir(out, "report")
+    md = (rep / "report.md").read_text()
+    s = _summary(out)
+    head = md.split("## Headline\n", 1)[1].lstrip()
+    first = head.split("\n\n", 1)[0].replace("\n", " ")  # the paragraph, unwrapped
+    assert first.startswith("**Verdict.** Fly `tuned` (its gains: `report/gains/tuned.toml`")
+    assert (out / "report" / "gains" / "tuned.toml").exists()
+    assert "Worse than `standard`" in first and "Not checked:" in first
+    _, rows = headline_rows(s)
+    h_row = next(r for r in rows if r[0].startswith("model: robust-stability limit"))
+    assert (h_row[-1] == MODEL_BOUND) == bool(s["h_lim_low_frequency_bound"]["tuned"])
+    if h_row[-1] == MODEL_BOUND:
+        assert "robust-stability limit h_lim of `tuned` is set by the model's low-frequency uncertainty" in first
+    twin = [r for r in rows if not r[0].startswith("model:")]
+    assert f"better than `standard` on {sum(r[-1] == 'better' for r in twin)} of {len(twin)} scenario" in first
+    # crossovers and margins per set: the tune stage's goal results say the same on the same model
+    for name, lp in s["loops"].items():
+        row = next(ln for ln in head.splitlines() if ln.startswith(f"| {name} |"))
+        assert f"| {lp['gm_db']:.1f} | {lp['pm_deg']:.1f} | {lp['disk_alpha']:.2f} |" in row
+        goals = {g["goal"]: g for g in s["goals"][name]}
+        margin = next(g for k, g in goals.items() if k.startswith("margins at u"))
+        assert f"GM {lp['gm_db']:.1f} dB, PM {lp['pm_deg']:.1f} deg, disk alpha {lp['disk_alpha']:.2f}" in margin["detail"]
+        cross_q = next(g for k, g in goals.items() if k.startswith("crossover q"))
+        assert f"{lp['wc_inner_rad_s'][0]:.2f}" in cross_q["detail"] or not lp["wc_inner_rad_s"], cross_q
+    assert max(len(ln) for ln in head.split("\n## ", 1)[0].splitlines()) <= 120  # the README copies it
+    print_verdict(out)
+    printed = capsys.readouterr().out
+    assert "Fly tuned" in printed and str(rep / "gains" / "tuned.toml") in printed

@@ -43,6 +43,14 @@ def riccati_antiwindup(G, q: float = 1.0, r: float = 1.0) -> ct.StateSpace:
     -------
     control.StateSpace
         inputs ``u_tilde[0..m-1]`` (``u - sat(u)``), outputs ``u_d[0..m-1]`` then ``y_d[0..p-1]``; same dt as G.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> Theta = tune.riccati_antiwindup(ct.ss(ct.tf([1.0], [1, 0, 0])))     # a double integrator
+    >>> Theta.ninputs, Theta.noutputs, bool(np.all(np.real(Theta.poles()) < 0))
+    (1, 2, True)
     """
     G = lti.as_ss(G)
     A, B, C, D = (np.asarray(M, float) for M in (G.A, G.B, G.C, G.D))
@@ -77,6 +85,29 @@ def pid_backcalculation(kp: float, ki: float, kd: float = 0.0, tf: float = 0.0, 
     Default tracking time ``Tt = sqrt(Ti Td)`` (Astrom & Hagglund), or ``Ti/2`` without D.
 
     Returns a continuous StateSpace with inputs ``e[0..n_err-1]`` and ``u_tilde``, output ``u``.
+
+    Parameters
+    ----------
+    kp, ki, kd : float
+        PID gains.
+    tf : float
+        Derivative filter time constant, s.
+    tt_s : float, optional
+        Tracking time constant of the back-calculation, s.
+    n_err : {1, 2}
+        One error input, or the modified PID's ``[r - angle, -rate]``.
+
+    Returns
+    -------
+    StateSpace
+        Continuous, inputs ``[error(s), u~]`` with ``u~ = u - sat(u)``, output ``u``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> K = tune.pid_backcalculation(kp=1.0, ki=2.0)           # PI: tracking time Ti / 2 = 0.25 s
+    >>> K.ninputs, K.noutputs                                  # [e, u~] -> u
+    (2, 1)
     """
     if ki <= 0:
         raise DataError(f"back-calculation needs integral action; got ki={ki}")
@@ -133,6 +164,18 @@ def simulate_saturated_loop(G, K, t_final_s: float, dt: float, r=0.0, d=0.0, u_m
     -------
     dict with ``t`` (nt,), ``y`` (nt, p), ``u`` (command before saturation), ``u_sat``, ``u_lin`` (the
     controller output) and ``y_d`` (nt, p) (the compensator's measurement correction; zeros without one).
+
+    Examples
+    --------
+    A PI loop on ``1/(s + 1)`` whose command saturates at 1.5 on a unit step: clamping keeps the overshoot down.
+
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G, K = ct.tf([1.0], [1, 1]), ct.ss(ct.tf([4.0, 8.0], [1, 0]))       # kp 4, ki 8
+    >>> plain = tune.simulate_saturated_loop(G, K, 6.0, 0.01, r=1.0, u_max=1.5)
+    >>> clamp = tune.simulate_saturated_loop(G, K, 6.0, 0.01, r=1.0, u_max=1.5, aw="clamp")
+    >>> bool(clamp["y"][:, 0].max() < plain["y"][:, 0].max()), round(float(clamp["y"][-1, 0]), 3)
+    (True, 1.0)
     """
     Gd, Kd = _disc(G, dt), _disc(K, dt)
     p = Gd.noutputs

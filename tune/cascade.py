@@ -63,7 +63,32 @@ class PlantModel:
 
 
 def plant_model(num, den, delay_s: float = 0.0, name: str = "model", dt: float = 0.0) -> PlantModel:
-    """PlantModel from transfer-function coefficients (continuous when ``dt == 0``)."""
+    """PlantModel from transfer-function coefficients (continuous when ``dt == 0``).
+
+    Parameters
+    ----------
+    num, den : sequence of float
+        Numerator and denominator coefficients, highest power first (deg/s per %).
+    delay_s : float
+        Input delay, s (kept beside ``G``; the cascade adds it exactly when it discretises).
+    name : str
+        Label in goal reports.
+    dt : float
+        Sample time of a discrete model, s (0: continuous).
+
+    Returns
+    -------
+    PlantModel
+
+    Examples
+    --------
+    The published P2-A2 test-bed model, pitch command (%) to pitch rate (deg/s), 0.06 s delay:
+
+    >>> from rotorlab import tune
+    >>> plant = tune.plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06, name="test-bed")
+    >>> plant.name, plant.delay_s, type(plant.G).__name__
+    ('test-bed', 0.06, 'TransferFunction')
+    """
     for tag, c in (("num", num), ("den", den)):
         if not np.all(np.isfinite(np.asarray(c, float))):
             raise ValueError(f"model '{name}': {tag} contains NaN or Inf")
@@ -71,7 +96,28 @@ def plant_model(num, den, delay_s: float = 0.0, name: str = "model", dt: float =
 
 
 def cascade_plant(model: PlantModel, dt: float) -> ct.StateSpace:
-    """``u -> [q; theta]`` with the delay, discrete at ``dt`` (ZOH + exact z^-k) or continuous (Pade) if dt == 0."""
+    """``u -> [q; theta]`` with the delay, discrete at ``dt`` (ZOH + exact z^-k) or continuous (Pade) if dt == 0.
+
+    Parameters
+    ----------
+    model : PlantModel
+        The rate model ``u [%] -> q [deg/s]`` and its delay.
+    dt : float
+        Controller sample time, s (0: continuous, the delay as a Pade approximant).
+
+    Returns
+    -------
+    StateSpace
+        ``u -> [q; theta]``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> plant = tune.plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06)
+    >>> Gp = tune.cascade_plant(plant, 0.02)            # 2 plant states, 3 delay samples, 1 integrator q -> theta
+    >>> Gp.noutputs, Gp.nstates, Gp.dt
+    (2, 6, 0.02)
+    """
     G = lti.as_ss(model.G)
     if G.ninputs != 1 or G.noutputs != 1:
         raise ValueError(f"model '{model.name}' must be SISO u -> q, got {G.noutputs}x{G.ninputs}")
@@ -97,6 +143,28 @@ def generalised_plant(Gp: ct.StateSpace, opened=(), inputs=INPUTS, outputs=OUTPU
 
     At a cut point the signal downstream is the injection alone; the output of the same name still reports
     the signal before the cut.
+
+    Parameters
+    ----------
+    Gp : StateSpace
+        ``u -> [q; theta]`` from :func:`cascade_plant`.
+    opened : sequence of str
+        Loop points cut (``"theta"``, ``"q"``, ``"u"``); at a cut the signal downstream is the injection alone.
+    inputs, outputs : sequence of str
+        The exogenous inputs ``w`` and performance outputs ``z`` to keep.
+
+    Returns
+    -------
+    StateSpace
+        ``[w; q_ref_c, u_c] -> [z; theta_ref, theta_meas, q_ref, q_meas]``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> Gp = tune.cascade_plant(tune.plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06), 0.02)
+    >>> P = tune.generalised_plant(Gp, inputs=("theta_ref",), outputs=("theta",))
+    >>> P.ninputs, P.noutputs                                  # [theta_ref; 2 controls] -> [theta; 4 measurements]
+    (3, 5)
     """
     opened = set(opened)
     A, B, C, D = (np.asarray(M, float) for M in (Gp.A, Gp.B, Gp.C, Gp.D))

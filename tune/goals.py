@@ -361,7 +361,35 @@ def _models_plants(models, dt):
 
 
 def evaluate(spec, gains, models) -> list[GoalResult]:
-    """Every goal of ``spec`` on every model for the gain set ``gains`` (GainSet or AxisGains)."""
+    """Every goal of ``spec`` on every model for the gain set ``gains`` (GainSet or AxisGains).
+
+    Parameters
+    ----------
+    spec : Spec
+        The goals and the cascade settings (:func:`rotorlab.tune.load_spec`).
+    gains : GainSet or AxisGains
+        The gains to score (the spec's axis is taken from a GainSet).
+    models : sequence of PlantModel
+        Plant models; every goal is evaluated on each.
+
+    Returns
+    -------
+    list of GoalResult
+        One per goal and model: value (<= 1 meets the goal), bound, pass/fail, hard or soft, detail.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> from rotorlab.gains import load_gains
+    >>> from rotorlab.vehicles import gains_path
+    >>> plant = tune.plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06, name="test-bed")
+    >>> spec = tune.load_spec("anteos-p2a2")
+    >>> standard = load_gains(gains_path("anteos-p2a2", "standard"))
+
+    >>> results = tune.evaluate(spec, standard, [plant])
+    >>> [r.goal for r in results if r.hard and not r.passed][:2]   # the standard gains miss the crossover band
+    ['crossover q in [3.5, 14] rad/s', 'tracking theta_ref->theta (0.5 s)']
+    """
     ax = gains[spec.axis] if isinstance(gains, GainSet) else gains
     S = cas.cascade_structure(spec.dt, ax)
     th = cas.gains_to_theta(S, ax)
@@ -419,6 +447,48 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
     The starts run through ``executor`` (a :class:`rotorlab.executor.Executor`, e.g. the pipeline's, local or
     Dask) or, without one, a local pool of ``n_jobs`` processes (:func:`rotorlab.tune.hinfstruct.run_starts`); the
     result does not depend on where they ran.
+
+    Parameters
+    ----------
+    spec : Spec
+        Goals, cascade settings and the parameters to tune (``spec.tune``).
+    models : sequence of PlantModel
+        The goals hold on every model (multi-model tuning).
+    start_gains : GainSet or AxisGains
+        The first start; further starts are random perturbations of it (``seed``).
+    starts : int
+        Number of starts; the best feasible result is returned.
+    seed : int
+        Root seed of the starts.
+    n_jobs : int
+        Local worker processes when no ``executor`` is given.
+    tol, max_iter, time_limit_s
+        Stopping rules of each start.
+    name : str
+        Name of the returned gain set.
+    progress : bool
+        Show a progress bar.
+    executor : rotorlab.executor.Executor, optional
+        Runs the starts.
+
+    Returns
+    -------
+    TuneResult
+        ``gains`` (a GainSet), ``report`` (GoalResults of the best start), ``objective`` (the worst soft goal),
+        ``history``, ``starts`` (one record per start) and ``time_s``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> from rotorlab.gains import load_gains
+    >>> from rotorlab.vehicles import gains_path
+    >>> plant = tune.plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06, name="test-bed")
+    >>> spec = tune.load_spec("anteos-p2a2")
+    >>> standard = load_gains(gains_path("anteos-p2a2", "standard"))
+
+    >>> res = tune.tune_cascade(spec, [plant], standard, starts=1, seed=0)
+    >>> all(r.passed for r in res.report if r.hard), bool(res.objective < 1.0)
+    (True, True)
     """
     t0 = time.perf_counter()
     ax = start_gains[spec.axis] if isinstance(start_gains, GainSet) else start_gains
@@ -463,6 +533,30 @@ def tune_cascade(spec, models, start_gains, *, starts: int = 1, seed=0, n_jobs: 
 
 
 def format_report(results: list[GoalResult]) -> str:
+    """The goal results as a plain-text table (what ``rotorlab tune`` prints).
+
+    Parameters
+    ----------
+    results : list of GoalResult
+        From :func:`evaluate` or ``TuneResult.report``.
+
+    Returns
+    -------
+    str
+        A fixed-width table, one line per goal and model, with PASS/FAIL and whether the goal is hard.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> from rotorlab.gains import load_gains
+    >>> from rotorlab.vehicles import gains_path
+    >>> plant = tune.plant_model([12.517, 36.374], [1, 5.583, 21.3], delay_s=0.06, name="test-bed")
+    >>> spec = tune.load_spec("anteos-p2a2")
+    >>> standard = load_gains(gains_path("anteos-p2a2", "standard"))
+
+    >>> print(tune.format_report(tune.evaluate(spec, standard, [plant])).splitlines()[0])
+    goal                                             model            value  bound        detail
+    """
     lines = [f"{'goal':<48} {'model':<12} {'value':>9} {'bound':>6}  {'':4}  detail"]
     for r in results:
         kind = "hard" if r.hard else "soft"

@@ -60,7 +60,8 @@ goals minimised, hard goals kept <= 1 and pole regions as constraints), which is
 systune-like goals. There the tangent program carries the hard goals as constraints, and the BFGS phase
 minimises the exact penalty ``soft + PENALTY * max(0, hard - bound)`` (its end point is kept only when it is
 no worse in (violation, objective)); the only setting that differs is the SLSQP budget per tangent-program
-subproblem (:data:`SPEC_SUB_ITER`), which keeps a start under a second (benchmarks/bench_tune.py).
+subproblem (:data:`SPEC_SUB_ITER`), a smaller budget that bounds each start's cost (benchmarks/bench_tune.py
+times a start).
 """
 
 from __future__ import annotations
@@ -197,7 +198,31 @@ class Channel:
 
 
 def closed_loop(P, nmeas: int, ncon: int, K) -> ct.StateSpace:
-    """Lower LFT ``F_l(P, K)`` as a StateSpace (states: plant then controller), with ``u = K y``."""
+    """Lower LFT ``F_l(P, K)`` as a StateSpace (states: plant then controller), with ``u = K y``.
+
+    Parameters
+    ----------
+    P : StateSpace
+        Generalised plant, inputs ``[w; u]``, outputs ``[z; y]``.
+    nmeas, ncon : int
+        Sizes of ``y`` (the last outputs) and ``u`` (the last inputs).
+    K : StateSpace
+        Controller ``y -> u`` in the time domain of ``P``.
+
+    Returns
+    -------
+    StateSpace
+        ``w -> z``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> P = ct.ss([[1.0]], [[1.0, 1.0]], [[1.0], [1.0]], [[0.0, 0.0], [0.0, 0.0]])   # [w, u] -> [z, y], x' = x + w + u
+    >>> cl = tune.closed_loop(P, 1, 1, ct.ss([], [], [], [[-3.0]]))                   # u = -3 y
+    >>> print(cl.poles())
+    [-2.+0.j]
+    """
     P = lti.as_ss(P)
     K = lti.as_ss(K)
     mats = _cl_matrices(P, nmeas, ncon, *(np.asarray(M, float) for M in (K.A, K.B, K.C, K.D)))
@@ -1100,8 +1125,8 @@ def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadlin
                               deadline=deadline, history=history, sub_iter=sub_iter)
         if fg.hard and m[0] <= 1e-9 and pred < tol:
             # feasible and stationary for the tangent program with the hard goals as constraints: BFGS on the
-            # exact penalty can then only creep along the constraint boundary (measured on the P2-A2 spec:
-            # 23 iterations for -0.02 %, ending above the tangent program's point)
+            # exact penalty could then only creep along the constraint boundary (the penalty's kink), so the
+            # rounds stop here
             break
         if len(history) <= cap:
             f, g = fg(x)
@@ -1399,6 +1424,18 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     StabilisationError
         No start found a stabilising controller and no fixed mode explains it: the message gives the smallest
         spectral abscissa reached and what was tried.
+
+    Examples
+    --------
+    A static output feedback on a plant with one unstable pole: ``z = [x; u]`` from a disturbance ``w``:
+
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G = ct.ss([[1.0]], [[1.0, 1.0]], [[1.0], [0.0], [1.0]], [[0, 0], [0, 1], [0, 0]])  # [w, u] -> [z1, z2, y]
+    >>> res = tune.hinfstruct(G, "static", nmeas=1, ncon=1, seed=0)
+    >>> k = res.controller.D.item()
+    >>> bool(k < -1), round(res.gamma, 3)          # stabilising (1 + k < 0), and the optimal gamma
+    (True, 1.0)
     """
     P = lti.as_ss(P)
     for tag, M in zip("ABCD", (P.A, P.B, P.C, P.D)):

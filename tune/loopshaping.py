@@ -58,7 +58,23 @@ def _omega(b: float) -> float:
 
 
 def tuhh_torque_gain(axis: str = "pitch") -> float:
-    """Moment per unit motor command, N m (roll/pitch: ``l dT/db``; yaw: ``dQ/db``) at hover."""
+    """Moment per unit motor command, N m (roll/pitch: ``l dT/db``; yaw: ``dQ/db``) at hover.
+
+    Parameters
+    ----------
+    axis : {'roll', 'pitch', 'yaw'}
+
+    Returns
+    -------
+    float
+        N m per unit motor command.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> bool(tune.tuhh_torque_gain("pitch") > 0), bool(tune.tuhh_torque_gain("yaw") < tune.tuhh_torque_gain("pitch"))
+    (True, True)
+    """
     _axis(axis)
     R, bH = TUHH["R_m"], TUHH["b_H"]
     area = math.pi * R * R
@@ -79,6 +95,18 @@ def tuhh_axis_plant(axis: str = "pitch", pade_order: int = 3, delay: bool = True
     pade_order : order of the Pade approximation of the delay ``Td`` (``delay=False`` leaves it out, e.g.
         to add it exactly in a discrete simulation).
     regularize : shift of the two integrator poles to ``s = -regularize`` (1/s), for H-inf synthesis.
+
+    Returns
+    -------
+    StateSpace
+        Continuous, input ``b``, outputs ``[angle (rad), rate (rad/s)]``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> G = tune.tuhh_axis_plant("pitch", delay=False)         # K |p|/(s + |p|) / (J s^2) and its rate
+    >>> G.noutputs, G.nstates
+    (2, 3)
     """
     par = _axis(axis)
     k = tuhh_torque_gain(axis)
@@ -119,7 +147,25 @@ def _stack_rate_angle(g_rate, integ):
 
 def modified_pid(kp: float, ki: float, kd: float) -> ct.StateSpace:
     """The 'modified PID' of ref. 002 fig. 4(b) as a 1x2 controller on ``[r - angle, -rate]``:
-    ``u = kp e + ki/s e + kd (-rate)`` (derivative from the measured rate, so the D part is a gain)."""
+    ``u = kp e + ki/s e + kd (-rate)`` (derivative from the measured rate, so the D part is a gain).
+
+    Parameters
+    ----------
+    kp, ki, kd : float
+        Proportional and integral gains on the angle error and the gain on the measured rate.
+
+    Returns
+    -------
+    StateSpace
+        Continuous, inputs ``[r - angle, -rate]``, output ``u``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> K = tune.modified_pid(kp=2.0, ki=1.0, kd=0.3)
+    >>> K.ninputs, K.noutputs, K.nstates                     # [r - angle, -rate] -> u, one integrator
+    (2, 1, 1)
+    """
     return ct.ss([[0.0]], [[1.0, 0.0]], [[ki]], [[kp, kd]])
 
 
@@ -159,7 +205,27 @@ def tuhh_generalized_plant(G, weights: MixedSensitivityWeights = MixedSensitivit
     """Generalised plant with exogenous ``w = (r_angle, r_rate, d)``, control ``u``; performance outputs
     ``z = (W_S e_angle, W_K u, W_T angle)``; measurements ``e = (V_r1 r_angle - angle, V_r2 r_rate - rate)``.
     The plant input is ``u + V_d d``. ``G`` maps ``u`` to ``[angle, rate]`` (:func:`tuhh_axis_plant`).
-    Input order ``(r_angle, r_rate, d, u)``, output order ``(z1, z2, z3, e_angle, e_rate)``."""
+    Input order ``(r_angle, r_rate, d, u)``, output order ``(z1, z2, z3, e_angle, e_rate)``.
+
+    Parameters
+    ----------
+    G : StateSpace
+        ``u -> [angle, rate]`` (:func:`tuhh_axis_plant`; regularised for a synthesis).
+    weights : MixedSensitivityWeights
+        The weights of ref. 002.
+
+    Returns
+    -------
+    StateSpace
+        Inputs ``(r_angle, r_rate, d, u)``, outputs ``(z1, z2, z3, e_angle, e_rate)``.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> P = tune.tuhh_generalized_plant(tune.tuhh_axis_plant("pitch", regularize=1e-3))
+    >>> P.ninputs, P.noutputs               # (r_angle, r_rate, d, u) -> (z1, z2, z3, e_angle, e_rate)
+    (4, 5)
+    """
     G = lti.as_ss(G)
     if (G.noutputs, G.ninputs) != (2, 1):
         raise DataError(f"the TUHH generalised plant needs G: b -> [angle, rate] (2x1); got {G.noutputs}x{G.ninputs}")
@@ -184,11 +250,34 @@ def hinf_mixed_sensitivity(axis: str = "pitch", weights: MixedSensitivityWeights
     Riccati solvers need a plant without imaginary-axis poles shared with the sensitivity weight's
     near-integrator; the controller is then checked on the exact double integrator by the caller.
 
+    Parameters
+    ----------
+    axis : {'roll', 'pitch', 'yaw'}
+        The TUHH axis (:func:`tuhh_axis_plant`).
+    weights : MixedSensitivityWeights
+        Performance and input weights (ref. 002's by default).
+    pade_order : int
+        Order of the Pade approximant of the axis delay in the synthesis model.
+    regularize : float
+        Where the double integrator's poles are moved for the synthesis, 1/s.
+
     Returns
     -------
     K : control.StateSpace, 1x2, from ``[r - angle (rad), -rate (rad/s)]`` (i.e. ``e`` with ``r_rate = 0``)
         to the axis command ``u`` (negative feedback via ``e``).
     gamma : achieved closed-loop H-inf norm of the weighted problem.
+
+    Examples
+    --------
+    The design closes a stable loop around the exact (unregularised) pitch axis:
+
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> K, gamma = tune.hinf_mixed_sensitivity("pitch")
+    >>> G = tune.tuhh_axis_plant("pitch")                      # b -> [angle, rate], exact double integrator
+    >>> cl = ct.feedback(K * G, 1)                             # r = 0: u = K [-angle, -rate] = -K G u
+    >>> bool(np.all(np.real(cl.poles()) < 0)), bool(gamma > 0)
+    (True, True)
     """
     G = tuhh_axis_plant(axis, pade_order=pade_order, regularize=regularize)
     P = tuhh_generalized_plant(G, weights)
@@ -231,6 +320,16 @@ def glover_mcfarlane(G, W1=None, W2=None, gamma_factor: float = 1.1):
         controller with its sign flipped).
     eps_max : float, the maximum normalised-coprime stability margin of ``Gs``.
     gamma : float, the design level (the achieved ``||[I; K_inf](I - Gs K_inf)^-1 [I, Gs]||_inf <= gamma``).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G = ct.ss(ct.tf([1.0], [1, -1]))                         # unstable 1/(s - 1)
+    >>> K, eps_max, gamma = tune.glover_mcfarlane(G)
+    >>> cl = ct.feedback(G * K, 1)                               # u = -K y
+    >>> bool(np.all(np.real(cl.poles()) < 0)), bool(0 < eps_max < 1)
+    (True, True)
     """
     G = lti.as_ss(G)
     if lti.is_discrete(G):

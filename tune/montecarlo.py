@@ -39,6 +39,27 @@ def single_loop(G, C) -> ct.StateSpace:
 
     Built as a lower LFT so direct feedthrough in both ``G`` and ``C`` (a static ``Delta``) is solved
     exactly; use ``functools.partial(single_loop, C=C)`` as a picklable ``closed_loop_builder``.
+
+    Parameters
+    ----------
+    G, C : StateSpace
+        Plant and controller, SISO, in the same time domain.
+
+    Returns
+    -------
+    StateSpace
+        The closed loop, inputs ``(r, d)``, outputs ``(y, u)``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G, C = ct.ss(ct.tf([1.0], [1, 1])), ct.ss(ct.tf([2.0], [1]))    # plant 1/(s + 1), proportional gain 2
+
+    >>> cl = tune.single_loop(G, C)                              # inputs (r, d), outputs (y, u)
+    >>> print(np.round(ct.dcgain(cl), 4))                        # y/r = 2/3, y/d = 1/3, u/r = 2/3, u/d = -2/3
+    [[ 0.6667  0.3333]
+     [ 0.6667 -0.6667]]
     """
     G, C = lti.as_ss(G), lti.as_ss(C)
     A, B, Cg, D = (np.asarray(M, float) for M in (G.A, G.B, G.C, G.D))
@@ -59,6 +80,32 @@ def random_delta(rng: np.random.Generator, h: float, dt: float = 0.0, w_band=(0.
     minimum phase). Discrete (``dt > 0``): the ZOH image of such a system, the band clipped below
     ``0.8 pi/dt``. Normalised by the exact H-inf norm. Written here rather than with ``control.rss`` /
     ``drss`` because those draw from NumPy's global state and cannot take a seeded Generator.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The draw's random stream.
+    h : float
+        The exact H-inf norm of the result.
+    dt : float
+        Sample time of a discrete ``Delta``, s (0: continuous).
+    w_band : (float, float)
+        Range of the pole frequency, rad/s.
+    static_fraction : float
+        Probability of a static ``+-h``.
+
+    Returns
+    -------
+    StateSpace
+        ``Delta``, stable.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> from rotorlab.lti import hinfnorm
+    >>> D = tune.random_delta(np.random.default_rng(0), h=0.5)
+    >>> round(hinfnorm(D)[0], 6), bool(np.all(np.real(D.poles()) < 0))
+    (0.5, True)
     """
     if rng.random() < static_fraction:
         return ct.ss([], [], [], [[h * (1.0 if rng.random() < 0.5 else -1.0)]], dt if dt else 0)
@@ -104,6 +151,34 @@ def worst_case_delta(W_delta, V_nom, h: float) -> ct.StateSpace:
     cos W)`` and sweeps ``(-pi, 0)`` as ``a`` runs over ``(-1, 1)``: the wanted phase ``phi`` (shifted by
     ``pi`` with a sign flip when needed) is met by ``a = sin(b) / sin(b - W)`` with ``b = (phi + W) / 2``.
     Continuous: ``(a - s) / (a + s)`` with ``a = w0 / tan(-phi / 2)``.
+
+    Parameters
+    ----------
+    W_delta : StateSpace
+        Uncertainty shaping filter (SISO).
+    V_nom : StateSpace
+        Nominal control sensitivity, with every closed-loop state (:func:`rotorlab.tune.robust.control_sensitivity`).
+    h : float
+        Peak gain of the returned ``Delta``.
+
+    Returns
+    -------
+    StateSpace
+        ``Delta``, stable, ``||Delta||_inf = h``, in the time domain of ``V_nom``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G, C = ct.ss(ct.tf([1.0], [1, 1])), ct.ss(ct.tf([2.0], [1]))    # plant 1/(s + 1), proportional gain 2
+
+    >>> W = ct.ss(ct.tf([0.5], [1]))
+    >>> V = tune.control_sensitivity(G, C)
+    >>> h = tune.h_lim(W, V)                                     # 1.0
+    >>> D = tune.worst_case_delta(W, V, 1.02 * h)
+    >>> cl = tune.single_loop(G + W * D, C)
+    >>> bool(np.max(np.real(cl.poles())) > 0), bool(np.max(np.real(tune.single_loop(G + W * tune.worst_case_delta(W, V, 0.98 * h), C).poles())) < 0)
+    (True, True)
     """
     W, V = lti.as_ss(W_delta), lti.as_ss(V_nom)
     dt = float(W.dt) if lti.is_discrete(W) else 0.0
@@ -150,7 +225,7 @@ class MonteCarloResult:
         than ``marginal_tol`` (spectral abscissa > ``marginal_tol``).
     marginal : bool mask (n,) of samples with a pole within ``marginal_tol`` of the boundary: neither stable
         nor unstable, reported apart and left out of the bands and statistics.
-    abscissa : closed-loop spectral abscissa per sample (max Re p, or max |p| - 1 when discrete).
+    abscissa : closed-loop spectral abscissa per sample (max Re p, or max abs(p) - 1 when discrete).
     rise_time_s, settling_time_s, overshoot_pct : set-point statistics per sample of
         :func:`rotorlab.stepresponse.step_metrics` for the unit step (NaN where undefined/unstable).
     load_peak : peak ``|y|`` of the load response per sample.
@@ -270,6 +345,25 @@ def montecarlo(G_nom, W_delta, closed_loop_builder, h: float, n: int = 1000, see
     marginal_tol : a closed-loop spectral abscissa within this of zero marks the sample marginal.
     executor : :class:`rotorlab.executor.Executor`, optional: runs the tasks (e.g. a run's Dask executor:
         :func:`rotorlab.executor.map_tasks`); default: a local pool of ``n_jobs``. Results do not depend on it.
+
+    Returns
+    -------
+    MonteCarloResult
+        Step responses of every sample and of the nominal loop, stability masks and step statistics.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G, C = ct.ss(ct.tf([1.0], [1, 1])), ct.ss(ct.tf([2.0], [1]))    # plant 1/(s + 1), proportional gain 2
+
+    >>> from functools import partial
+    >>> W = ct.ss(ct.tf([0.5], [1]))
+    >>> h = tune.h_lim(W, tune.control_sensitivity(G, C))          # 1.0
+    >>> from rotorlab.tune.montecarlo import montecarlo
+    >>> res = montecarlo(G, W, partial(tune.single_loop, C=C), 0.9 * h, n=20, seed=0, progress=False)
+    >>> int(res.unstable.sum())                                      # below h_lim no sample is unstable
+    0
     """
     if n < 1 or int(n) != n:
         raise DataError(f"n must be a positive whole number of samples; got {n}")

@@ -50,6 +50,28 @@ def additive_spread(G_nom, G_reps, w) -> np.ndarray:
 
     ``G_reps`` is a sequence of LTI models (same shape and time domain as ``G_nom``). Discrete models are
     evaluated at ``exp(j w dt)``.
+
+    Parameters
+    ----------
+    G_nom : StateSpace or TransferFunction
+        Nominal model.
+    G_reps : sequence of StateSpace or TransferFunction
+        Replica models.
+    w : array_like
+        Frequencies, rad/s.
+
+    Returns
+    -------
+    ndarray
+        The largest singular value of the difference at each frequency, over the replicas.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G = ct.tf([1.0], [1, 1])
+    >>> print(np.round(tune.additive_spread(G, [0.9 * G, 1.2 * G], [0.0, 1.0]), 4))   # 0.2 |G(jw)|
+    [0.2    0.1414]
     """
     G_nom = _finite_ss(G_nom, "G_nom")
     w = np.asarray(w, dtype=float).ravel()
@@ -141,6 +163,17 @@ def fit_wdelta(G_nom, G_reps, w, order: int = 3, under_weight: float = 10.0) -> 
         ``W_delta`` with the time domain of ``G_nom``: continuous for continuous models; for discrete
         models a discrete filter whose poles/zeros are the matched (``z = e^{s dt}``) images of the fitted
         continuous roots, fitted and checked directly on ``exp(j w dt)``.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G = ct.tf([12.517, 36.374], [1, 5.583, 21.3])
+    >>> reps = [ct.tf([12.517 * k, 36.374 * k], [1, 5.583, 21.3]) for k in (0.95, 1.05, 1.1)]  # 10 % gain spread
+    >>> w = np.logspace(-1, 2, 200)
+    >>> W = tune.fit_wdelta(G, reps, w, order=2)
+    >>> bool(np.all(np.abs(ct.frequency_response(W, w).complex.ravel()) >= tune.additive_spread(G, reps, w) * (1 - 1e-9)))
+    True
     """
     if int(order) != order or order < 1:
         raise DataError(f"order must be a positive whole number; got {order}")
@@ -214,7 +247,28 @@ def fit_wdelta(G_nom, G_reps, w, order: int = 3, under_weight: float = 10.0) -> 
 def control_sensitivity(G, C) -> ct.StateSpace:
     """Nominal control sensitivity ``V = -C/(1 + G C)`` of the single loop ``u = C (r - y)``, ``y = G u``:
     the transfer from a signal added to ``y`` to ``u``. Returned with every closed-loop state (no
-    cancellation), so internal instability stays visible to :func:`h_lim`."""
+    cancellation), so internal instability stays visible to :func:`h_lim`.
+
+    Parameters
+    ----------
+    G : StateSpace or TransferFunction
+        Nominal plant (SISO), input delay included.
+    C : StateSpace or TransferFunction
+        Controller in the same time domain.
+
+    Returns
+    -------
+    StateSpace
+        ``V``, with all closed-loop states.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> V = tune.control_sensitivity(ct.ss(ct.tf([1.0], [1, 1])), ct.ss(ct.tf([2.0], [1])))
+    >>> round(float(ct.evalfr(V, 0).real), 4)               # -C/(1 + G C) at DC: -2/3
+    -0.6667
+    """
     G = _finite_ss(G, "G")
     C = _finite_ss(C, "C")
     _same_domain(G, C, "control_sensitivity")
@@ -237,6 +291,20 @@ def h_lim(W_delta, V_nom) -> float:
     DataError
         when ``V_nom`` is unstable (the nominal closed loop is not stable, so no ``h`` is robust), on
         NaN entries, mismatched dimensions or time domains.
+
+    Returns
+    -------
+    float
+        The largest peak gain ``h`` of a stable ``Delta`` for which every ``G_nom + W_delta Delta`` is stabilised.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G, C = ct.ss(ct.tf([1.0], [1, 1])), ct.ss(ct.tf([2.0], [1]))
+    >>> V = tune.control_sensitivity(G, C)                  # -C/(1 + G C) = -2 (s + 1)/(s + 3)
+    >>> round(tune.h_lim(ct.ss(ct.tf([0.5], [1])), V), 4)   # 1/||0.5 V|| = 1/(0.5 * 2)
+    1.0
     """
     W = _finite_ss(W_delta, "W_delta")
     V = _finite_ss(V_nom, "V_nom")
@@ -318,6 +386,22 @@ def h_lim_analysis(W_delta, V_nom, G=None, rel_tol: float = 1e-3, s_tol: float =
     s_tol : the bound is controller-independent when the sensitivity at the peak is at most this: the gains
         then move h_lim by about that fraction at most (0.1: -20 dB of sensitivity, within 10 %). A peak just
         above DC (0.6 rad/s on the P2-A2's fifth-order test-bed models) is as controller-independent as one at DC.
+
+    Returns
+    -------
+    HLim
+        ``h_lim``, the peak frequency, the DC ratio, whether ``V_nom(0) = -1/G(0)``, the sensitivity at the peak
+        and ``low_frequency_bound`` (the value bounds the model's uncertainty, not the gains).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> G, C = ct.ss(ct.tf([1.0], [1, 1])), ct.ss(ct.tf([2.0], [1]))    # plant 1/(s + 1), proportional gain 2
+
+    >>> r = tune.h_lim_analysis(ct.ss(ct.tf([0.5], [1])), tune.control_sensitivity(G, C), G)
+    >>> round(r.h_lim, 4), r.low_frequency_bound          # no integral action: S(0) = 1/3, not small
+    (1.0, False)
     """
     h = h_lim(W_delta, V_nom)
     W, V = _finite_ss(W_delta, "W_delta"), _finite_ss(V_nom, "V_nom")

@@ -62,6 +62,19 @@ def half_rule(G, delay_s: float = 0.0, second_order: bool = False) -> HalfRuleMo
     ----------
     G : continuous SISO LTI model without delay (``delay_s`` holds the delay, s).
     second_order : keep two lags (SOPTD, for PID) instead of one (FOPTD, for PI).
+
+    Returns
+    -------
+    HalfRuleModel
+        Gain, one or two time constants, delay and the number of integrators.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> m = tune.half_rule(ct.tf([1.0], [1, 3, 2]))     # 1 / ((s + 1)(s + 2)): lags 1 s and 0.5 s
+    >>> float(m.tau1_s), float(m.theta_s)             # half of the neglected 0.5 s to each
+    (1.25, 0.25)
     """
     if not isinstance(G, (ct.StateSpace, ct.TransferFunction)):
         raise DataError(f"the plant must be a control.StateSpace or TransferFunction; got {type(G).__name__}")
@@ -146,6 +159,21 @@ def simc_pid(G, tau_c: float | None = None, delay_s: float = 0.0, controller: st
     G : continuous SISO plant without delay; delay_s : its delay (s).
     tau_c : closed-loop time constant, s. controller : 'pi' or 'pid'.
     tf_ratio : derivative filter time constant as a fraction of ``tau_D`` (``tf = tf_ratio tau_D``).
+
+    Returns
+    -------
+    LoopGains
+        Parallel-form gains ``kp``, ``ki = kp / tau_I``, ``kd = kp tau_D`` and the derivative filter ``tf``.
+
+    Examples
+    --------
+    First-order plus delay, ``2 e^{-0.1 s} / (s + 1)``, ``tau_c = theta`` ("tight control"):
+
+    >>> import control as ct
+    >>> from rotorlab import tune
+    >>> g = tune.simc_pid(ct.tf([2.0], [1, 1]), delay_s=0.1, controller="pi")
+    >>> round(float(g.kp), 3), round(float(g.ki), 3)   # kc = tau1 / (k 2 theta) = 2.5, ki = kc / min(tau1, 8 theta)
+    (2.5, 3.125)
     """
     if controller not in ("pi", "pid"):
         raise DataError(f"controller must be 'pi' or 'pid'; got {controller!r}")

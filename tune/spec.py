@@ -49,6 +49,29 @@ def builtin_specs() -> dict:
 
 
 def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
+    """Read a spec from its TOML document, strictly: every key checked, every goal built from its type.
+
+    Parameters
+    ----------
+    data : dict
+        The TOML document as read by ``tomllib``: a ``[cascade]`` table and ``[[goal]]`` entries.
+    name : str
+        The spec's name in reports.
+    src : str or Path
+        Where ``data`` came from, named in error messages.
+
+    Returns
+    -------
+    Spec
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> spec = tune.parse_spec({"cascade": {"dt": 0.02, "tune": ["inner.kp", "inner.ki"]},
+    ...                         "goal": [{"type": "margins", "point": "u", "gm_db": 6.0, "pm_deg": 40.0}]})
+    >>> spec.tune, type(spec.goals[0]).__name__
+    (['inner.kp', 'inner.ki'], 'Margins')
+    """
     top = Table(src, data)
     top.table("meta", required=False, free=True)
     c = top.table("cascade")
@@ -79,7 +102,30 @@ def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
 
 
 def load_spec(path_or_name) -> Spec:
-    """Read a spec file, or a built-in spec by name (``anteos-p2a2``, ``anteos-a2minib``)."""
+    """Read a spec file, or a built-in spec by name (``anteos-p2a2``, ``anteos-a2minib``).
+
+    Parameters
+    ----------
+    path_or_name : str or Path
+        A spec TOML file, or the name of a shipped spec (``tune/specs/NAME.toml``).
+
+    Returns
+    -------
+    Spec
+        The cascade settings and the goals.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the field: an unknown key, a wrong type, an unknown goal type, a missing value.
+
+    Examples
+    --------
+    >>> from rotorlab import tune
+    >>> spec = tune.load_spec("anteos-p2a2")
+    >>> spec.dt, spec.axis, len(spec.goals)
+    (0.02, 'pitch', 8)
+    """
     p = Path(path_or_name)
     if not p.exists():
         specs = builtin_specs()

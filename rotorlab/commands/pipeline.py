@@ -57,9 +57,29 @@ def run(args) -> int:
                            workers=args.workers, progress=not args.no_progress, n_boot=args.n_boot, n_mc=args.n_mc)
     try:
         run_pipeline(opts)
+        print_verdict(out)
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
     except KeyboardInterrupt:
         print(f"\ninterrupted: completed stages are kept in {out}; run the same command again to resume")
         return 130
     return 0
+
+
+def print_verdict(out: Path) -> None:
+    """The report's verdict (which set to fly, its file, what got worse, what was not checked) on the terminal."""
+    import json
+
+    from rotorlab.pipeline import stage_dir
+    from rotorlab.pipeline.stages.report import wrap
+
+    report = stage_dir(out, "report")
+    summary = report / "summary.json"
+    if not summary.is_file():  # a pipeline without the report stage (stages=...) has no verdict to print
+        return
+    lines = json.loads(summary.read_text(encoding="utf-8")).get("verdict") or []
+    if lines:
+        print("\nverdict (" + str(report / "report.md") + "):")
+        for sentence in lines:
+            print("\n".join(wrap(sentence.replace("`", "").replace("report/gains/", f"{report}/gains/")
+                                  .replace(" in the run folder", ""), 100)))

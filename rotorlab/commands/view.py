@@ -3,7 +3,7 @@ web viewer served over HTTP with --web, or (on a machine without a display) inst
 
 PATH is a .rrd file, a run folder (rotorlab run --out DIR; a folder without a recording gets recording.rrd
 written from its log.parquet and run.json: the signals and the static scene, without the animated poses,
-which need rotorlab run ... --rerun FILE.rrd) or a pipeline folder (its report/recordings/*.rrd, one per
+which need rotorlab run ... --rerun FILE.rrd) or a pipeline folder (the .rrd files in its report/recordings, one per
 validation run, all opened together).
 """
 

@@ -15,15 +15,18 @@ The log holds ``u_lon`` (PRBS plus supervisor), the supervisor's share ``sup_lon
 
 Options
 -------
-``protocol`` : str        ``quasi-open-loop`` (default) or ``position-hold``
-``segment_s``, ``holds``, ``amplitudes_pct``: the campaign, as in ``prbs`` (default [7, 9, 11] %, designed holds)
-``wind_mps`` : float      mean wind, headwind (default 2.5 m/s: ref. 000 does not give the wind of the P2-A2's
-                          in-flight identification; this is the mean wind of its A2-MINI/B flight test)
-``turbulence`` : bool     Dryden turbulence on (default True), gust gradients included: ref. 000 puts the
-                          wider in-flight uncertainty band down to "the presence of wind gust" (less repeatable
-                          conditions than the test-bed); the gradients' pitch moment on the rotors' damping is
-                          the in-band part of it (in hover at 2.5 m/s most of the horizontal gusts' power lies below 0.1
-                          rad/s, and the vertical gust reaches the pitch axis only through the collective)
+``protocol`` : str
+    ``quasi-open-loop`` (default) or ``position-hold``.
+``segment_s``, ``holds``, ``amplitudes_pct``:
+    the campaign, as in ``prbs`` (default [7, 9, 11] %, designed holds).
+``wind_mps`` : float
+    Mean wind, headwind (default 2.5 m/s: ref. 000 does not give the wind of the P2-A2's in-flight identification;
+    this is the mean wind of its A2-MINI/B flight test).
+``turbulence`` : bool
+    Dryden turbulence on (default True), gust gradients included: ref. 000 puts the wider in-flight uncertainty
+    band down to "the presence of wind gust" (less repeatable conditions than the test-bed); the gradients' pitch
+    moment on the rotors' damping is the in-band part of it (in hover at 2.5 m/s most of the horizontal gusts'
+    power lies below 0.1 rad/s, and the vertical gust reaches the pitch axis only through the collective).
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ import html
 import math
 import re
 import shutil
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -25,11 +26,14 @@ from rotorlab.lti import d2c_zoh, freqresp
 from rotorlab.pipeline import tuhh_report
 from rotorlab.pipeline.runfolder import Stage, StageContext
 from rotorlab.pipeline.settings import DT_S
-from rotorlab.plotting import figure, label, plot_runs, read_run, save
+from rotorlab.plotting import figure, label, legend_outside, plot_runs, read_run, save
 from rotorlab.sim.rerun_log import TableLog, record_run
+from rotorlab.tune.cascade import cascade_plant, cascade_structure
+from rotorlab.tune.goals import CrossoverBand
+from rotorlab.tune.margins import crossover_frequencies, margins
 
 __all__ = ["STAGE", "write_report", "render_figures", "flatten_metrics", "compare_sets", "claims", "headline_rows",
-           "HEADLINE"]
+           "HEADLINE", "loop_analysis", "verdict", "wrap"]
 
 PUBLISHED = {
     "anteos-p2a2": {"moesp_best": "n=4, p=40", "pbsid_best": "n=5, p/f=11/7", "nugap_testbed_flight": 0.0741,
@@ -201,7 +205,7 @@ def _fig_spectrum(ctx: StageContext, figs: Path):
                    (f" ({frac:.0%} of the input power)" if frac is not None and col == "u_lon" else ""))
         u = units[col] if "/" not in units[col] else f"({units[col]})"
         ax.set_ylabel(label(f"PSD of {col}", f"{u}^2/(rad/s)"))
-        ax.legend(fontsize=8, loc="lower left")
+        legend_outside(ax)
     axs[-1, 0].set_xlabel(label("frequency", "rad/s"))
     axs[0, 0].set_title("PRBS identification campaign: input and output spectra (Welch)")
     return _save(fig, figs / "prbs_spectrum.png")
@@ -234,7 +238,7 @@ def _fig_bode(ctx: StageContext, figs: Path, ident: dict):
     am.set_ylabel("|q/u_lon| [dB re 1 (deg/s)/%]")
     ap.set_ylabel(label("phase", "deg"))
     ap.set_xlabel(label("frequency", "rad/s"))
-    am.legend(fontsize=8, ncol=2)
+    legend_outside(am)
     am.set_title("identified models (input delay removed) vs the twin's true model (50 Hz: Nyquist 157 rad/s)")
     return _save(fig, figs / "bode.png")
 
@@ -270,7 +274,7 @@ def _fig_poles(ctx: StageContext, figs: Path):
             pad = 0.05 * max(xr[1] - xr[0], 2 * yr)
             ax.set_xlim(xr[0] - pad, xr[1] + pad), ax.set_ylim(-yr - pad, yr + pad)
             ax.set_title(f"all {pc.size} bootstrap poles")
-            ax.legend(fontsize=8, loc="upper left")
+            legend_outside(ax)
     return _save(fig, figs / "poles.png")
 
 
@@ -296,7 +300,7 @@ def _fig_montecarlo(ctx: StageContext, figs: Path, sets):
         ax.set_xlabel(label("time t", "s"))
     axs[0].set_ylabel(label("theta / theta_ref", "deg/deg"))
     axs[1].set_ylabel(label("theta per load step", "deg/%"))
-    axs[0].legend(fontsize=8)
+    legend_outside(axs[1])
     return _save(fig, figs / "montecarlo.png")
 
 
@@ -382,6 +386,12 @@ def write_report(ctx: StageContext) -> dict:
         summary["skipped"]["greybox"] = gb["skipped"]
     summary["design_claims"] = tuhh_report.design_claims(validation)
     summary["claims"] = claims(summary, tuned) if tuned else []
+    try:
+        summary["loops"] = loop_analysis(ctx.run.plant(ident["nominal"], "nominal"),
+                                         {n: g for n, g in ctx.run.gain_sets().items() if n in sets})
+    except Exception as exc:  # an analysis table must never sink the report; say which and why
+        summary["loops"] = {}
+        summary["skipped"]["loops"] = f"skipped: {type(exc).__name__}: {exc}"
     fig_paths, skipped = render_figures(ctx, figs, ident, sets, tuned)
     summary["skipped"].update(skipped)
     summary["figures"] = fig_paths
@@ -390,12 +400,31 @@ def write_report(ctx: StageContext) -> dict:
     shutil.copy2(ctx.run.w_delta_path(), ctx.work / "models" / "w_delta.json")
     _write_gains(ctx, sets)
     summary["recordings"] = _recordings(ctx, sets, summary)
+    summary["verdict"] = verdict(summary)
     md = _markdown(summary)
     atomic.write_text(ctx.work / "report.md", md)
     atomic.write_text(ctx.work / "report.html", _html(md, ctx.vehicle))
     atomic.write_json(ctx.work / "summary.json", summary)
-    return {"summary": "summary.json", "report": "report.md", "figures": fig_paths,
+    return {"summary": "summary.json", "report": "report.md", "figures": fig_paths, "verdict": summary["verdict"],
             "claims": [{k: c.get(k) for k in ("claim", "holds")} for c in summary["claims"]]}
+
+
+def loop_analysis(plant, gain_sets: dict, dt: float = DT_S) -> dict:
+    """Crossovers and margins of the pitch cascade of every gain set on ``plant`` (the nominal identified model,
+    its delay included), discretised at ``dt``: ``{set: {"wc_outer_rad_s": [...], "wc_inner_rad_s": [...],
+    "gm_db", "pm_deg", "dm_s", "disk_alpha"}}``. The outer loop is opened at theta with the inner loop closed,
+    the inner at q with the outer open; the margins are at the plant input u with both loops closed (the
+    points the tuning spec's goals use)."""
+    Gp = cascade_plant(plant, dt)
+    out = {}
+    for name, gs in gain_sets.items():
+        K = cascade_structure(dt, gs["pitch"]).ss()
+        m = margins(CrossoverBand("u", 1.0, 2.0).loop_tf(Gp, K))
+        out[name] = {"wc_outer_rad_s": crossover_frequencies(CrossoverBand("theta", 1.0, 2.0).loop_tf(Gp, K)).tolist(),
+                     "wc_inner_rad_s": crossover_frequencies(CrossoverBand("q", 1.0, 2.0).loop_tf(Gp, K)).tolist(),
+                     "gm_db": m.gm_db, "pm_deg": m.pm_deg, "dm_s": m.dm_s, "disk_alpha": m.disk_alpha,
+                     "stable": m.stable}
+    return out
 
 
 def render_figures(ctx, figs: Path, ident: dict, sets, tuned) -> tuple[dict, dict]:
@@ -453,21 +482,24 @@ HEADLINE = [
     ("setpoint", "linear_step.rise_time_s", "linear 0.3 deg step: rise time [s]", True),
     ("setpoint", "linear_step.overshoot_pct", "linear 0.3 deg step: overshoot [%]", True),
     ("setpoint", "linear_step.settling_time_s", "linear 0.3 deg step: settling time [s]", True),
-    ("setpoint", "large_steps.mean.rise_time_s", "large (saturating) steps: mean rise time [s]", True),
-    ("setpoint", "large_steps.mean.overshoot_pct", "large (saturating) steps: mean overshoot [%]", True),
-    ("setpoint", "large_steps.mean.settling_time_s", "large (saturating) steps: mean settling time [s]", True),
+    ("setpoint", "large_steps.mean.rise_time_s", "saturating steps: mean rise time [s]", True),
+    ("setpoint", "large_steps.mean.overshoot_pct", "saturating steps: mean overshoot [%]", True),
+    ("setpoint", "large_steps.mean.settling_time_s", "saturating steps: mean settling time [s]", True),
     ("setpoint", "control.rms", "set-point steps: command RMS [%]", True),
-    ("setpoint", "control.hf_power", "set-point steps: command power above 5 Hz [%^2]", True),
+    ("setpoint", "control.hf_power", "set-point steps: command power > 5 Hz [%^2]", True),
     ("gust", "pitch.disturbance.peak_deviation", "gust: peak pitch drift [deg]", True),
     ("gust", "pitch.disturbance.iae", "gust: pitch IAE [deg s]", True),
     ("rope-pull", "release_overshoot_deg", "rope pull: overshoot after release [deg]", True),
-    ("rope-pull", "release.recovery_time_s", "rope pull: recovery time after release [s]", True),
+    ("rope-pull", "release.recovery_time_s", "rope pull: recovery after release [s]", True),
     ("rope-pull", "release.iae", "rope pull: IAE after release [deg s]", True),
     ("rope-pull", "control_after_release.rms", "rope pull: command RMS after release [%]", True),
-    ("hover", "pitch.rms_error_deg", "hover (in-flight switch): pitch RMS error [deg]", True),
-    ("hover", "pitch.control.rms", "hover (in-flight switch): pitch command RMS [%]", True),
-    ("hover", "position_error_rms_m", "hover (in-flight switch): position RMS error [m]", True),
+    ("hover", "pitch.rms_error_deg", "hover after switch: pitch RMS error [deg]", True),
+    ("hover", "pitch.control.rms", "hover after switch: pitch command RMS [%]", True),
+    ("hover", "position_error_rms_m", "hover after switch: position RMS error [m]", True),
 ]
+#: the verdict of a row whose value does not depend on the gains (h_lim set by the model's low-frequency
+#: uncertainty): never counted as an improvement
+MODEL_BOUND = "model-bound"
 
 
 def _metric(s, sc, key, name):
@@ -481,15 +513,17 @@ def _metric(s, sc, key, name):
 
 
 def headline_rows(s) -> tuple[list, list]:
-    """Header and rows of the headline table: every gain set side by side, change of the compared set."""
+    """Header and rows of the headline table: every gain set side by side, change of the compared set against
+    the standard one (on magnitudes), and whether that change is an improvement ("better", "worse", "~same",
+    or :data:`MODEL_BOUND` where the compared set's value is the model's, not the gains')."""
     sets = list(s["gains"])
     cmp_ = s["compared_set"]
     rows = []
 
-    def add(label, vals, lower, fmt="{:.4g}"):
+    def add(label, vals, lower, fmt="{:.4g}", bound=False):
         a, b = vals.get("standard"), vals.get(cmp_)
         chg = 100.0 * (b - a) / abs(a) if a not in (None, 0) and b is not None and cmp_ != "standard" else None
-        verdict = "-" if chg is None else ("~same" if abs(chg) < 0.5 else
+        verdict = "-" if chg is None else (MODEL_BOUND if bound else "~same" if abs(chg) < 0.5 else
                                            ("better" if (chg < 0) == lower else "worse"))
         rows.append([label] + [_f(vals.get(n), fmt) for n in sets] + [_f(chg, "{:+.1f} %"), verdict])
 
@@ -497,26 +531,90 @@ def headline_rows(s) -> tuple[list, list]:
         vals = {n: _metric(s, sc, key, n) for n in sets}
         if any(v is not None for v in vals.values()):
             add(row_name, vals, lower)
-    add("model: robust-stability limit h_lim (higher is better)", s["h_lim"], False, "{:.3f}")
-    add("model: in-flight h_lim, flight model's own W_delta (higher is better)", s.get("h_lim_flight", {}), False,
-        "{:.3f}")
+    add("model: robust-stability limit h_lim", s["h_lim"], False, "{:.3f}",
+        bound=bool(s.get("h_lim_low_frequency_bound", {}).get(cmp_)))
+    add("model: in-flight h_lim (own W_delta)", s.get("h_lim_flight", {}), False, "{:.3f}")
     for lvl in _mc_levels(s):
-        add(f"model: Monte Carlo at {lvl} x h_lim, unstable fraction",
+        add(f"model: unstable fraction, MC at {lvl} x h_lim",
             {n: _mc_level(s, n, lvl).get("fraction_unstable") for n in sets}, True, "{:.2f}")
     wc = {n: s["montecarlo"].get(n, {}).get("worst_case") for n in sets}
     if any(wc.values()):
         scale = next(w["scale"] for w in wc.values() if w)
-        rows.append([f"model: worst-case all-pass Delta at {scale:g} x h_lim destabilises"] +
+        rows.append([f"model: worst-case Delta at {scale:g} x h_lim unstable"] +
                     [("yes" if w["unstable"] else "**no**") if w else "-" for w in wc.values()] + ["", ""])
     add("model: linear set-point step rise time [s]", {n: s["step"].get(n, {}).get("rise_time_s") for n in sets}, True)
     if s.get("goals"):
-        hard = {n: ("all met" if all(r["passed"] for r in g if r["hard"]) else
-                    "fails " + ", ".join(r["goal"] for r in g if r["hard"] and not r["passed"]))
-                for n, g in s["goals"].items()}
-        rows.append(["model: hard goals of the spec"] + [hard.get(n, "-") for n in sets] + ["", ""])
         soft = {n: max((r["value"] for r in g if not r["hard"]), default=None) for n, g in s["goals"].items()}
-        add("model: worst soft goal (tuning objective, <= 1 passes)", soft, True, "{:.3f}")
+        add("model: worst soft goal (<= 1 passes)", soft, True, "{:.3f}")
     return ["metric"] + sets + [f"{cmp_} vs standard", "verdict"], rows
+
+
+def hard_goals(s) -> dict:
+    """``{set: "all met" | "fails GOAL, GOAL"}`` for the spec's hard goals on the nominal model."""
+    return {n: ("all met" if all(r["passed"] for r in g if r["hard"]) else
+                "fails " + ", ".join(r["goal"] for r in g if r["hard"] and not r["passed"]))
+            for n, g in (s.get("goals") or {}).items()}
+
+
+def wrap(text: str, width: int = 118) -> list[str]:
+    """A paragraph as lines of at most ``width`` characters (the README copies the headline; it wraps at 120)."""
+    # a number keeps its unit on its line: the spaces before units are non-breaking while wrapping
+    glued = re.sub(r"(\d) (%|deg|s|rad/s|dB)(?=\W|$)", "\\1\u00a0\\2", text)
+    lines = textwrap.wrap(glued, width=width, break_long_words=False, break_on_hyphens=False)
+    return [ln.replace("\u00a0", " ") for ln in lines]
+
+
+def verdict(s) -> list[str]:
+    """The report's conclusion as sentences: which gain set to fly and its file, how much better it is on the
+    twin, what got worse, and what the run did not check. Counts only the scenario rows of the headline as
+    evidence (the model rows are analyses of one identified model), and never a :data:`MODEL_BOUND` row."""
+    cmp_ = s.get("compared_set")
+    not_checked = ("Not checked: a real flight (every number is the twin's or the identified model's); "
+                   + ("the roll and yaw loops (the tuning and the validation metrics are pitch's)" if cmp_ else
+                      "the yaw loop (the designs fly on the roll and pitch rigs)"))
+    skipped = sorted(s.get("skipped") or {})
+    if skipped:
+        not_checked += f"; {len(skipped)} skipped item(s), listed under Skipped"
+    not_checked += "."
+    if not cmp_:
+        return ["No tuned gain set to fly: no tuning spec ships for this vehicle, so the standard set "
+                "(`report/gains/standard.toml` in the run folder) stays; the reference's designs are compared "
+                "below, flown on the twin in place of the cascade.", not_checked]
+    header, rows = headline_rows(s)
+    twin = [r for r in rows if not r[0].startswith("model:")]
+    better = [r for r in twin if r[-1] == "better"]
+    worse = [r for r in rows if r[-1] == "worse"]
+    bound = [r for r in rows if r[-1] == MODEL_BOUND]
+    goals = hard_goals(s)
+    meets = goals.get(cmp_, "all met") == "all met"
+    fly = cmp_ if meets and len(better) > len([r for r in twin if r[-1] == "worse"]) else "standard"
+    changes = sorted(float(r[-2].split()[0]) for r in better)
+    out = []
+    if fly == cmp_:
+        med = changes[len(changes) // 2] if changes else float("nan")
+        out.append(f"Fly `{fly}` (its gains: `report/gains/{fly}.toml` in the run folder): "
+                   + ("it meets every hard goal of the spec, and " if goals else "")
+                   + f"on the twin it is better than `standard` on {len(better)} of {len(twin)} scenario measures "
+                   f"(median change {med:+.0f} %, best {changes[0]:+.0f} %).")
+    else:
+        why = (f"`{cmp_}` {goals[cmp_]}" if not meets else
+               f"`{cmp_}` is better on only {len(better)} of {len(twin)} scenario measures")
+        out.append(f"Keep flying `standard` (its gains: `report/gains/standard.toml` in the run folder): {why}.")
+    if worse:
+        on_twin = [f"{r[0]} {r[-2]}" for r in worse if not r[0].startswith("model:")]
+        on_model = [f"{r[0].removeprefix('model: ')} {r[-2]}" for r in worse if r[0].startswith("model:")]
+        out.append("Worse than `standard`: " + "; ".join(
+            ([("on the twin: " + ", ".join(on_twin))] if on_twin else []) +
+            ([("on the identified models: " + ", ".join(on_model))] if on_model else [])) + ".")
+    else:
+        out.append("Worse than `standard`: nothing in the headline.")
+    if bound:
+        out.append("Not an improvement of the gains: " + "; ".join(r[0].removeprefix("model: ") for r in bound)
+                   + f" of `{cmp_}` is set by "
+                   "the model's low-frequency uncertainty (controller-independent, the same for any gains with "
+                   "integral action).")
+    out.append(not_checked)
+    return out
 
 
 def _peak_text(peak_rad_s, low_frequency: bool | None) -> str:
@@ -535,23 +633,55 @@ def _mc_level(s, name: str, lvl: str) -> dict:
 
 
 def _headline(s) -> list[str]:
+    lines = wrap("**Verdict.** " + " ".join(s["verdict"])) + [""]
     tuned = s["compared_set"]
     if not tuned:
-        return tuhh_report.headline(s, _table) or ["No gain set other than the standard one to compare."]
-    lines = [f"**Does `{tuned}` beat `standard` on the twin?** Every gain set side by side (magnitudes; "
-             f"change = ({tuned} - standard) / standard; the verdict says whether the change is an improvement).",
-             ""]
+        return lines + (tuhh_report.headline(s, _table) or [])
+    loops = s.get("loops") or {}
+    if loops:
+        goals = hard_goals(s)
+        lines += wrap("Per gain set, on the nominal model: crossovers of the outer (theta) and inner (q) loops, the "
+                      "gain, phase and disk margins at the plant input; on the twin: the linear 0.3 deg step's rise "
+                      "time and overshoot (OS) and the gust's peak pitch drift.") + [""]
+        lines += _table(["set", "wc outer [rad/s]", "wc inner [rad/s]", "GM [dB]", "PM [deg]", "disk",
+                         "rise [s]", "OS [%]", "gust [deg]", "hard goals"],
+                        [[n, "/".join(_f(w, "{:.2f}") for w in lp["wc_outer_rad_s"]) or "none",
+                          "/".join(_f(w, "{:.2f}") for w in lp["wc_inner_rad_s"]) or "none",
+                          _f(lp["gm_db"], "{:.1f}"), _f(lp["pm_deg"], "{:.1f}"), _f(lp["disk_alpha"], "{:.2f}"),
+                          _f(_metric(s, "setpoint", "linear_step.rise_time_s", n), "{:.3f}"),
+                          _f(_metric(s, "setpoint", "linear_step.overshoot_pct", n), "{:.1f}"),
+                          _f(_metric(s, "gust", "pitch.disturbance.peak_deviation", n), "{:.3f}"),
+                          "all met" if goals.get(n) == "all met" else
+                          (f"{goals[n].count(',') + 1} failed" if n in goals else "-")]
+                         for n, lp in loops.items()])
+        lines += [""]
+    lines += [f"**Does `{tuned}` beat `standard` on the twin?** Magnitudes; change = ({tuned} - standard) / "
+              "standard.", ""]
     header, rows = headline_rows(s)
     lines += _table(header, rows)
-    lines += ["", "**Do the paper's claims hold on the twin?**", ""]
+    if any(r[-1] == MODEL_BOUND for r in rows):
+        lines += ["", f"{MODEL_BOUND}: the value of `{tuned}` is the model's low-frequency bound, not the gains'."]
+    return lines
+
+
+def _claims_section(s) -> list[str]:
+    tuned = s["compared_set"]
+    if not tuned:
+        return []
+    L = ["", "## Do the paper's claims hold?", ""]
+
     def vs_opt(c):
         d = [f"{r['vs_published_pct']:+.1f} %" for r in c.get("checks", []) if r.get("vs_published_pct") is not None]
         return ", ".join(d) or "-"
 
-    lines += _table(["claim (ref. 000)", f"holds ({tuned} vs standard)", f"{tuned} vs published optimum", "evidence"],
-                    [[c["claim"], {True: "yes", False: "**no**", None: "n/a"}[c["holds"]], vs_opt(c), c["evidence"]]
-                     for c in s["claims"]])
-    return lines
+    L += _table(["claim (ref. 000)", f"holds ({tuned} vs standard)", f"{tuned} vs published optimum", "evidence"],
+                [[c["claim"], {True: "yes", False: "**no**", None: "n/a"}[c["holds"]], vs_opt(c), c["evidence"]]
+                 for c in s["claims"]])
+    goals = hard_goals(s)
+    if goals:
+        L += ["", "Hard goals of the spec on the nominal model:", ""]
+        L += _table(["gain set", "hard goals"], [[n, g] for n, g in goals.items()])
+    return L
 
 
 def _markdown(s: dict) -> str:
@@ -559,6 +689,7 @@ def _markdown(s: dict) -> str:
          f"rotorlab {s['rotorlab_version']}, seed {s['seed']}, level `{s['level']}`. Every number here is in "
          "`summary.json`.", "", "## Headline", ""]
     L += _headline(s)
+    L += _claims_section(s)
     L += ["", "## 1. Identification campaign on the twin", ""]
     L += _table(["run", "kind", "scene", "duration [s]", "std u [%]", "std q [deg/s]", "max |theta| [deg]", "stopped"],
                 [[k, r["kind"], r["scene"], _f(r["duration_s"]), _f(r["u_std_pct"]), _f(r["q_std_dps"]),
@@ -704,8 +835,8 @@ def _markdown(s: dict) -> str:
                   "set of its column (the dotted line in the figure; the standard run switches to itself); its "
                   "metrics are taken after the switch (the first 3 s after it left out): every set on the same "
                   "window of the same turbulence.", ""]
-        L += _table(["metric"] + names, [[f"{lab} [{unit}]" if unit else lab] + [fmt(v) for v in vals]
-                                        for _, lab, unit, vals in rows])
+        L += _table(["metric"] + names, [[_row_label(key, lab, unit)] + [fmt(_magnitude(key, v)) for v in vals]
+                                        for key, lab, unit, vals in rows])
         if n_all > len(rows):
             L += ["", f"{n_all - len(rows)} more metrics of this scenario in `summary.json` (`validation.{sc}`)."]
         key = {"hover": "hover"}.get(sc, sc)
@@ -720,6 +851,16 @@ def _markdown(s: dict) -> str:
                                        "or one with `rerun FILE.rrd`: " +
               ", ".join(f"[{k}]({v})" for k, v in s["recordings"].items())]
     return "\n".join(L) + "\n"
+
+
+def _magnitude(key: str, v):
+    """A peak deviation as its magnitude (the metric keeps its sign in summary.json): the tables compare sizes."""
+    return abs(v) if v is not None and key.endswith("peak_deviation") else v
+
+
+def _row_label(key: str, lab: str, unit: str) -> str:
+    lab = f"{lab} (magnitude)" if key.endswith("peak_deviation") else lab
+    return f"{lab} [{unit}]" if unit else lab
 
 
 def _settings(st: dict) -> str:
