@@ -317,9 +317,9 @@ def test_runs_skip_the_acceleration_pass_at_the_tick_only_where_nothing_reads_it
 def test_cli_list_and_run(tmp_path, capsys):
     assert main(["list", "--json"]) == 0
     cat = json.loads(capsys.readouterr().out)
-    assert set(cat["vehicles"]) == {"anteos-p2a2", "anteos-a2minib", "tuhh-quad"}
+    assert set(cat["vehicles"]) == {"anteos-p2a2", "anteos-a2minib", "tuhh-quad", "x500"}
     assert "free-flight" in cat["scenes"] and "rest" in cat["scenarios"]
     assert main(["run", "rest", "--vehicle", "tuhh-quad", "--duration", "1", "--seed", "3", "--out", str(tmp_path)]) == 0
     assert (tmp_path / "log.parquet").exists() and (tmp_path / "run.json").exists()
     assert main(["run", "rest", "--vehicle", "nope"]) == 2
-    assert "valid: anteos-a2minib, anteos-p2a2, tuhh-quad" in capsys.readouterr().err
+    assert "valid: anteos-a2minib, anteos-p2a2, tuhh-quad, x500" in capsys.readouterr().err
