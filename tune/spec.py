@@ -56,6 +56,9 @@ def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
     axis = c.str("axis", "pitch", choices=("pitch", "roll"))
     two_dof = c.bool("two_dof", False)
     tune = c.strlist("tune", choices=cas.PARAM_NAMES)
+    if not tune:  # nothing to tune reached the optimiser as a numpy reshape error
+        raise c.error("tune", "nothing to tune", expected=f"at least one parameter of {list(cas.PARAM_NAMES)}",
+                      got=tune)
     for t in tune:
         if not two_dof and t.split(".")[1] in ("b", "c"):
             raise c.error("tune", "set-point weights are tuned only with two_dof = true", got=t)

@@ -11,8 +11,6 @@ header row; --column-map renames CSV columns, --resample interpolates uneven tim
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from rotorlab.cli import CLIError, describe, positive_int
@@ -101,13 +99,13 @@ def _identify(args, u, y, dt, delay):
 
 
 def run(args) -> int:
-    from rotorlab.atomic import check_writable_dir
+    from rotorlab.atomic import check_output
     from rotorlab.ident.logs import check_identifiable, load_log
     from rotorlab.ident.methods import get_method
     from rotorlab.ident.metrics import simulate, vaf
     from rotorlab.ident.modelio import save_model
 
-    check_writable_dir(Path(args.out).parent, "folder of --out")
+    check_output(args.out, [args.log, args.cv_log])  # never over an input log, before any work
 
     try:
         get_method(args.method)

@@ -34,11 +34,11 @@ def _switch_gains(vehicle, name) -> GainSet:
     names = [name] if name else ["optimal", "optimal-flight"]
     for n in names:
         try:
-            return load_gains(gains_path(vehicle.name, n))
+            return load_gains(gains_path(vehicle, n))
         except UnknownNameError:
             continue
     raise UnknownNameError(f"gain set of {vehicle.name} to switch to", str(name or "optimal"),
-                           list_gains(vehicle.name))
+                           list_gains(vehicle))
 
 
 def setup(ctx: Context) -> Setup:
