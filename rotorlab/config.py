@@ -22,6 +22,7 @@ import math
 import os
 import re
 import stat
+import sys
 import tomllib
 from pathlib import Path
 
@@ -131,18 +132,28 @@ def read_toml(path, kind: str) -> dict:
     """Parse the TOML file ``path``; ``kind`` ("vehicle", "gains", "spec") names it in the errors."""
     path = Path(path)
     text = _text(read_input(path, kind), path, kind, "TOML")
+    limit = sys.get_int_max_str_digits()
     try:
+        # tomllib converts integers with int(), which Python refuses beyond 4300 digits; up to
+        # _TOML_INT_DIGITS the integer is read (and refused by the typed read, naming its field)
+        if 0 < limit < _TOML_INT_DIGITS:
+            sys.set_int_max_str_digits(_TOML_INT_DIGITS)
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"not valid TOML: {exc}", file=path) from None
     except RecursionError:
         raise ConfigError("not valid TOML: nested too deeply", file=path,
                           expected=f"at most {MAX_DEPTH} levels of arrays and tables") from None
-    except ValueError as exc:  # tomllib converts integers with int(): beyond 4300 digits Python refuses
-        raise ConfigError(f"not valid TOML: {exc}", file=path, expected="numbers of at most 4300 digits") from None
+    except ValueError as exc:  # an integer beyond _TOML_INT_DIGITS digits
+        raise ConfigError(f"not valid TOML: {exc}", file=path,
+                          expected=f"numbers of at most {_TOML_INT_DIGITS} digits") from None
+    finally:
+        sys.set_int_max_str_digits(limit)
     return check_depth(doc, path)
 
 
+#: longest integer read from TOML (quadratic to convert: a second beyond a few hundred thousand digits)
+_TOML_INT_DIGITS = 100_000
 #: integers longer than this are read as floats (inf beyond float range), never converted digit by digit
 _MAX_INT_DIGITS = 18
 
