@@ -858,7 +858,7 @@ def test_sigkill_of_a_pipeline_leaves_no_process_and_the_rerun_resumes_with_iden
     """The acceptance test: a tiny pipeline killed with SIGKILL in its pool stage leaves no rotorlab process;
     the same command then resumes (completed stages cached) and every stage's output hash equals an
     uninterrupted run's."""
-    cmd = [*CLI, "pipeline", "--tiny", "--workers", "2", "--no-progress", "--seed", "5"]
+    cmd = [*CLI, "pipeline", "--tiny", "--workers", "2", "--no-progress", "--seed", "3"]
     ref, out = tmp_path / "ref", tmp_path / "killed"
     subprocess.run([*cmd, "--out", str(ref)], env=ENV, check=True, capture_output=True, timeout=1200)
     p = subprocess.Popen([*cmd, "--out", str(out)], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
@@ -1145,3 +1145,10 @@ def test_an_empty_tune_list_names_the_field(tmp_path, capsys):
 def test_implausible_magnitudes_name_the_field(tmp_path, capsys, field, old, new):
     v = edited(tmp_path, P2A2, old, new)
     bad(capsys, *run_rest(v, tmp_path), says=(str(v), f"'{field}'", "a magnitude in [1e-09, 1e+06]"))
+
+
+def test_pipeline_of_a_vehicle_without_gain_sets_says_so_before_work(tmp_path, capsys):
+    v = _foreign_vehicle(tmp_path / "bare", gains=None)
+    bad(capsys, "pipeline", "--tiny", "--vehicle", v, "--out", tmp_path / "pl",
+        says=("'standard' gain set", str(tmp_path / "bare" / "gains"), "has no gain sets"))
+    assert not (tmp_path / "pl").exists()

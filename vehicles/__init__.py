@@ -60,15 +60,13 @@ def gains_dir(vehicle) -> Path:
     no ``gains/`` folder beside it whose ``[vehicle] name`` is a shipped vehicle is a modified copy of that
     vehicle (run.json records it as not the shipped file) and uses the shipped vehicle's gain sets.
     """
-    if isinstance(vehicle, VehicleSpec):
-        path, name = Path(vehicle.path), vehicle.name
-        if not path.is_file():  # a spec built in memory: only a shipped name has gain sets
-            path = VEHICLES_DIR / name / "vehicle.toml"
-    else:
-        path = vehicle_path(vehicle)
-        name = path.parent.name if path.parent.parent == VEHICLES_DIR else None
+    if not isinstance(vehicle, VehicleSpec):
+        vehicle = load_vehicle(vehicle)  # its [vehicle] name decides whether it is a modified shipped vehicle
+    path, name = Path(vehicle.path), vehicle.name
+    if not path.is_file():  # a spec built in memory: only a shipped name has gain sets
+        path = VEHICLES_DIR / name / "vehicle.toml"
     own = path.parent / "gains"
-    if own.is_dir() or name is None or not (VEHICLES_DIR / name / "gains").is_dir():
+    if own.is_dir() or not (VEHICLES_DIR / name / "gains").is_dir():
         return own
     return VEHICLES_DIR / name / "gains"
 
@@ -94,8 +92,9 @@ def gains_path(vehicle, name: str) -> Path:
     p = folder / f"{name}.toml"
     if not _SET_NAME.fullmatch(str(name)) or ".." in str(name) or not p.is_file():
         valid = list_gains(vehicle)
-        if not valid and isinstance(vehicle, VehicleSpec):
-            raise ConfigError(f"vehicle '{vehicle.name}' ({vehicle.path}) has no gain sets: no {folder}/*.toml",
+        if not valid:
+            v = vehicle if isinstance(vehicle, VehicleSpec) else load_vehicle(vehicle)
+            raise ConfigError(f"vehicle '{v.name}' ({v.path}) has no gain sets: no {folder}/*.toml",
                               field="gains", expected=f"--gains FILE.toml, or {folder / (str(name) + '.toml')}",
                               got=str(name))
         raise UnknownNameError(f"gain set of {_label(vehicle)}", str(name), valid)

@@ -120,6 +120,14 @@ def run(args) -> int:
     # the vehicle's own name (a safe name, rotorlab.config.check_name), not its path: `--vehicle ../x/vehicle.toml`
     # must not name the folder "vehicle"
     out = Path(args.out or f"runs/{args.scenario}-{vehicle.name}-seed{args.seed}")
+    rrd = None
+    if args.rerun:
+        from rotorlab.sim.rerun_log import check_rrd_path
+
+        try:
+            rrd = check_rrd_path(args.rerun)  # before the run: a bad path must not cost a simulation
+        except RotorlabError as exc:
+            raise CLIError(str(exc)) from None
     from rotorlab.atomic import check_output
 
     inputs = [vehicle.path, *(c for c in args.controller if Path(c).suffix in (".json", ".toml"))]
@@ -129,14 +137,6 @@ def run(args) -> int:
         check_output(out, inputs, "--out", what="folder")
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
-    rrd = None
-    if args.rerun:
-        from rotorlab.sim.rerun_log import check_rrd_path
-
-        try:
-            rrd = check_rrd_path(args.rerun)  # before the run: a bad path must not cost a simulation
-        except RotorlabError as exc:
-            raise CLIError(str(exc)) from None
     try:
         controller = None
         if args.controller:

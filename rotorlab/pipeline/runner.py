@@ -23,12 +23,13 @@ from pathlib import Path
 
 from rotorlab import __version__, atomic
 from rotorlab.config import read_json
+from rotorlab.errors import RotorlabError
 from rotorlab.executor import get_executor
 from rotorlab.pipeline.runfolder import RunFolder, StageContext, read_manifest, stage_dir
 from rotorlab.pipeline.settings import FORMAT_VERSION, PipelineError, PipelineOptions, settings_for
 from rotorlab.pipeline.stages import REGISTRY, STAGES
 from rotorlab.tune.spec import builtin_specs
-from rotorlab.vehicles import load_vehicle, vehicle_path
+from rotorlab.vehicles import gains_dir, gains_path, load_vehicle, vehicle_path
 
 __all__ = ["run_pipeline", "stage_hash", "dir_hash", "run_folder_lock", "LOCK_NAME"]
 
@@ -44,7 +45,7 @@ def _vehicle_fingerprint(vehicle: str) -> dict:
     """Content hashes of the vehicle's configuration: its TOML, gain sets and shipped tuning spec (the tune
     stage's requirements), so that editing any of them re-runs what depends on it."""
     p = vehicle_path(vehicle)
-    files = {p.name: p, **{f"gains/{f.name}": f for f in sorted((p.parent / "gains").glob("*.toml"))}}
+    files = {p.name: p, **{f"gains/{f.name}": f for f in sorted(gains_dir(vehicle).glob("*.toml"))}}
     spec = builtin_specs().get(vehicle)
     if spec is not None:
         files["spec"] = Path(spec)
@@ -223,7 +224,12 @@ def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
 
     Each stage prints one line: its number, name, ``done``/``cached`` and its time.
     """
-    load_vehicle(opts.vehicle)  # unknown vehicle -> UnknownNameError listing the valid ones, before any work
+    v = load_vehicle(opts.vehicle)  # unknown vehicle -> UnknownNameError listing the valid ones, before any work
+    try:  # tuning and validation start from the vehicle's standard set: a vehicle of one's own needs one too
+        gains_path(v, "standard")
+    except RotorlabError as exc:
+        raise PipelineError(f"the pipeline starts from the vehicle's 'standard' gain set, in gains/standard.toml "
+                            f"beside its file ({gains_dir(v)}): {exc}") from None
     s = settings_for(opts.level, opts.n_boot, opts.n_mc)
     out = Path(opts.out)
     if out.exists() and not out.is_dir():
