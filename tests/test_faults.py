@@ -1152,3 +1152,10 @@ def test_pipeline_of_a_vehicle_without_gain_sets_says_so_before_work(tmp_path, c
     bad(capsys, "pipeline", "--tiny", "--vehicle", v, "--out", tmp_path / "pl",
         says=("'standard' gain set", str(tmp_path / "bare" / "gains"), "has no gain sets"))
     assert not (tmp_path / "pl").exists()
+
+
+def test_montecarlo_duration_is_checked_before_the_runs(tmp_path, capsys):
+    """A duration no run can take failed in every worker and was reported as 100 % stopped early, exit 0."""
+    bad(capsys, "montecarlo", "rest", "--n", "2", "--duration", "1e9", "--out", tmp_path / "mc",
+        says=("'duration'", "over half the available memory"))
+    assert not list(tmp_path.glob("mc/*.parquet"))

@@ -135,7 +135,7 @@ def run(args) -> int:
     from rotorlab.executor import get_executor
     from rotorlab.logformat import write_parquet
     from rotorlab.sim import randomize, scenarios
-    from rotorlab.sim.runner import resolve_gains
+    from rotorlab.sim.runner import check_duration, resolve_gains
     from rotorlab.vehicles import load_vehicle
 
     vary = parse_vary(args.vary)
@@ -145,6 +145,8 @@ def run(args) -> int:
         scenarios.get(args.scenario)
         v = load_vehicle(args.vehicle)
         _check_delay_spread(v, vary)
+        if args.duration is not None:  # before any run: every sample would fail alike in its worker
+            check_duration(args.duration, v.control_dt_s)
         gains = resolve_gains(v, args.gains)
         out = atomic.check_output(args.out or f"runs/montecarlo-{args.scenario}-{v.name}-seed{args.seed}",
                                   flag="--out", what="folder")
