@@ -68,7 +68,6 @@ def bounded_int(hi: int, lo: int = 1, what: str = ""):
         if not lo <= v <= hi:
             raise argparse.ArgumentTypeError(f"expected a whole number in [{lo}, {hi}]{what}, got {shown(int(v))}")
         return int(v)
-    parse.__name__ = "whole number"  # argparse names the type in its error message
     return parse
 
 
@@ -85,9 +84,6 @@ def max_processes() -> int:
 def process_count(text: str) -> int:
     """argparse type: a number of worker processes, at most :func:`max_processes`."""
     return bounded_int(max_processes(), what=" (twice the CPUs of this machine)")(text)
-
-
-process_count.__name__ = "whole number"
 
 
 def seed_int(text: str) -> int:
