@@ -1159,3 +1159,30 @@ def test_montecarlo_duration_is_checked_before_the_runs(tmp_path, capsys):
     bad(capsys, "montecarlo", "rest", "--n", "2", "--duration", "1e9", "--out", tmp_path / "mc",
         says=("'duration'", "over half the available memory"))
     assert not list(tmp_path.glob("mc/*.parquet"))
+
+
+def test_sigterm_to_a_pipeline_stops_its_workers_and_keeps_its_stages(tmp_path):
+    """SIGTERM (`kill PID`, a job scheduler) left the two workers computing for minutes; it is handled as
+    Ctrl-C: the workers are stopped, completed stages kept, exit 143."""
+    out = tmp_path / "pl"
+    p = subprocess.Popen([*CLI, "pipeline", "--tiny", "--workers", "2", "--no-progress", "--seed", "3", "--out",
+                          str(out)], env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    try:
+        t0 = time.perf_counter()
+        while not ((out / "stages" / "experiments").exists() and len(_children(p.pid)) >= 2) \
+                and time.perf_counter() - t0 < 600:
+            time.sleep(0.05)
+        assert p.poll() is None, "the pipeline ended before a pool stage was caught"
+        p.send_signal(signal.SIGTERM)
+        text, err = p.communicate(timeout=120)
+        assert p.returncode == 143, err
+        assert "Traceback" not in text + err and "completed stages are kept" in text
+        t0 = time.perf_counter()
+        while _group(p.pid) and time.perf_counter() - t0 < 10:
+            time.sleep(0.1)
+        assert _group(p.pid) == []
+        assert (out / "stages" / "experiments" / "stage.json").exists()
+    finally:
+        for pid in _group(p.pid):
+            os.kill(pid, signal.SIGKILL)
