@@ -49,7 +49,7 @@ def positive_int(text: str) -> int:
     try:
         v = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {shown(text)}") from None
     if v < 1:
         raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {v}")
     return v
@@ -91,9 +91,9 @@ def seed_int(text: str) -> int:
     try:
         v = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {shown(text)}") from None
     if not 0 <= v < 2**32:
-        raise argparse.ArgumentTypeError(f"expected a whole number in [0, 2**32), got {v}")
+        raise argparse.ArgumentTypeError(f"expected a whole number in [0, 2**32), got {shown(v)}")
     return v
 
 
