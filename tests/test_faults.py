@@ -1186,3 +1186,13 @@ def test_sigterm_to_a_pipeline_stops_its_workers_and_keeps_its_stages(tmp_path):
     finally:
         for pid in _group(p.pid):
             os.kill(pid, signal.SIGKILL)
+
+
+@pytest.mark.parametrize("scenario,option,says", [
+    ("hover", "wind_mps=1e300", ("'options.wind_mps'", "magnitude at most 1e+06")),
+    ("gust", "mean_wind_mps=-1e300", ("'options.mean_wind_mps'", "magnitude at most 1e+06")),
+    ("hover", "wind_mps=1000", ("'V_mps'", "(0, 340] m/s", "mean wind")),
+])
+def test_scenario_options_beyond_any_flight_are_refused(tmp_path, capsys, scenario, option, says):
+    """wind_mps = 1e300 overflowed the turbulence filter into a traceback."""
+    bad(capsys, "run", scenario, "--duration", "1", "--option", option, "--out", tmp_path / "r", says=says)
