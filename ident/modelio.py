@@ -36,6 +36,9 @@ VERSION = 1
 # its cost grows with the cube of the states: 100 s at 50 Hz asked for 56 GiB. Two seconds is far beyond any
 # flyable attitude loop (the published delays are 0.024-0.06 s) and stays at 100 extra states at 50 Hz.
 MAX_DELAY_S = 2.0
+#: most states of a model read from a file: identified models have a handful, and the tuner's cost grows with
+#: the cube of the states (as for the delay's states above); a 32 MiB file could hold thousands
+MAX_ORDER = 200
 
 
 def _parts(model):
@@ -161,6 +164,10 @@ def load_model(path) -> tuple[ct.StateSpace, float, dict]:
         den = _vector(doc, "den", file)
         if den[0] == 0:
             raise ConfigError("leading coefficient is zero", file=file, field="den", expected="non-zero", got=doc["den"])
+        if len(den) - 1 > MAX_ORDER:
+            raise ConfigError("model order too high", file=file, field="den",
+                              expected=f"at most {MAX_ORDER + 1} coefficients (order {MAX_ORDER})",
+                              got=f"{len(den)} coefficients")
         if len(num) > len(den):
             raise ConfigError("improper transfer function", file=file, field="num",
                               expected=f"at most {len(den)} coefficients (the length of den)", got=doc["num"])
@@ -181,6 +188,9 @@ def load_model(path) -> tuple[ct.StateSpace, float, dict]:
             raise ConfigError("unsupported version", file=file, field="version", expected=VERSION, got=ver)
         A = _matrix(doc, "A", file)
         n = A.shape[0]
+        if n > MAX_ORDER:
+            raise ConfigError("model order too high", file=file, field="A",
+                              expected=f"at most {MAX_ORDER} states", got=f"{n} states")
         if A.shape != (n, n):
             raise ConfigError("not square", file=file, field="A", expected="an n x n matrix", got=list(A.shape))
         B = _matrix(doc, "B", file, (n, None))

@@ -1030,7 +1030,8 @@ def test_deeply_nested_toml_is_an_error(tmp_path, capsys, kind):
     ('{"num": [1], "den": [1, 1e999], "dt": 0}', "'den'"),
     ('{"num": [0, 0], "den": [1, 2, 3], "dt": 0}', "the model is zero"),
     ('[1, 2]', "the top level must be an object"),
-], ids=["deep", "5000-digits", "400-digits", "dt-5000-digits", "inf", "zero", "list"])
+    ('{"num": [1], "den": [1' + ", 0.5" * 300 + '], "dt": 0.02}', "model order too high"),
+], ids=["deep", "5000-digits", "400-digits", "dt-5000-digits", "inf", "zero", "list", "order-300"])
 def test_bad_model_json_is_an_error(tmp_path, capsys, doc, says):
     m = tmp_path / "m.json"
     m.write_text(doc)
