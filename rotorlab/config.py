@@ -316,8 +316,9 @@ class Table:
         if self.magnitude is not None and v != 0 and math.isfinite(v):
             lo, hi = self.magnitude
             if not lo <= abs(v) <= hi:
-                raise self.error(key, "implausible physical value", expected=f"a magnitude in [{lo:g}, {hi:g}] "
-                                 "(or 0 where the field allows it)", got=v)
+                want = (f"a magnitude in [{lo:g}, {hi:g}] (or 0 where the field allows it)" if lo > 0
+                        else f"a magnitude of at most {hi:g}")
+                raise self.error(key, "implausible value", expected=want, got=v)
 
     def vec(self, key, n=None, default=REQUIRED, *, lo=None, hi=None, lo_open=False, allow_inf=False,
             min_len: int = 1) -> tuple:

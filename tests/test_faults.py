@@ -1197,3 +1197,28 @@ def test_sigterm_to_a_pipeline_stops_its_workers_and_keeps_its_stages(tmp_path):
 def test_scenario_options_beyond_any_flight_are_refused(tmp_path, capsys, scenario, option, says):
     """wind_mps = 1e300 overflowed the turbulence filter into a traceback."""
     bad(capsys, "run", scenario, "--duration", "1", "--option", option, "--out", tmp_path / "r", says=says)
+
+
+@pytest.mark.parametrize("case,says", [
+    ("spec-dt", ("'cascade.dt'", "0 (continuous design) or at least 0.0001 s", "got 1e-300")),
+    ("delay-samples", ("delay of 1 s is 1e+04 samples", "cascade.dt = 0.0001 s", "at most 200")),
+    ("start-kp", ("'pitch.outer.kp'", "a magnitude of at most 1e+06", "got 1e+300")),
+])
+def test_tuning_sizes_and_gains_beyond_reason_are_refused(tmp_path, capsys, case, says):
+    """A 1e-300 s cycle reached numpy as "Maximum allowed dimension exceeded"; kp = 1e300 as "the interconnection
+    is not well posed"; a 1 s delay at 0.1 ms is 10000 states of every loop analysed."""
+    model, spec, start = _model(tmp_path), SPEC, P2A2.parent / "gains" / "standard.toml"
+    if case == "spec-dt":
+        spec = edited(tmp_path, SPEC, "dt = 0.02 ", "dt = 1e-300 ", "spec.toml")
+    elif case == "delay-samples":
+        spec = edited(tmp_path, SPEC, "dt = 0.02 ", "dt = 0.0001 ", "spec.toml")
+        doc = json.loads(model.read_text())
+        model.write_text(json.dumps({**doc, "delay_s": 1.0}))
+    else:
+        start = tmp_path / "g.toml"
+        text = (P2A2.parent / "gains" / "standard.toml").read_text()
+        import re
+
+        start.write_text(re.sub(r"kp = [0-9.]+", "kp = 1e300", text, count=1))
+    bad(capsys, "tune", "--model", model, "--spec", spec, "--start", start, "--out", tmp_path / "o.toml",
+        "--starts", "1", "--max-iter", "1", "--jobs", "1", says=says)
