@@ -17,7 +17,6 @@ next to it in seconds (and in samples for discrete models).
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -25,6 +24,7 @@ import control as ct
 import numpy as np
 
 from rotorlab.atomic import write_json
+from rotorlab.config import read_json
 from rotorlab.errors import ConfigError
 from rotorlab.lti import as_ss, dc_gain, is_discrete, s_plane
 
@@ -36,6 +36,9 @@ VERSION = 1
 # its cost grows with the cube of the states: 100 s at 50 Hz asked for 56 GiB. Two seconds is far beyond any
 # flyable attitude loop (the published delays are 0.024-0.06 s) and stays at 100 extra states at 50 Hz.
 MAX_DELAY_S = 2.0
+#: most states of a model read from a file: identified models have a handful, and the tuner's cost grows with
+#: the cube of the states (as for the delay's states above); a 32 MiB file could hold thousands
+MAX_ORDER = 200
 
 
 def _parts(model):
@@ -182,12 +185,7 @@ def load_model(path) -> tuple[ct.StateSpace, float, dict]:
     """
     path = Path(path)
     file = str(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("no such model file", file=file) from None
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})", file=file) from None
+    doc = read_json(path, "model")  # a regular file of bounded size and nesting (rotorlab.config)
     if not isinstance(doc, dict):
         raise ConfigError("the top level must be an object", file=file, got=type(doc).__name__)
     dt = _number(doc, "dt", file, default=0.0, minimum=0.0)
@@ -200,9 +198,17 @@ def load_model(path) -> tuple[ct.StateSpace, float, dict]:
         den = _vector(doc, "den", file)
         if den[0] == 0:
             raise ConfigError("leading coefficient is zero", file=file, field="den", expected="non-zero", got=doc["den"])
+        if len(den) - 1 > MAX_ORDER:
+            raise ConfigError("model order too high", file=file, field="den",
+                              expected=f"at most {MAX_ORDER + 1} coefficients (order {MAX_ORDER})",
+                              got=f"{len(den)} coefficients")
         if len(num) > len(den):
             raise ConfigError("improper transfer function", file=file, field="num",
                               expected=f"at most {len(den)} coefficients (the length of den)", got=doc["num"])
+        if not any(num):
+            # a zero model: no controller moves its output, which tuning reported as "no start stabilises"
+            raise ConfigError("the model is zero (no input reaches the output)", file=file, field="num",
+                              expected="at least one non-zero coefficient", got=doc["num"])
         sys = ct.tf2ss(ct.tf(num, den, dt))
         meta = {k: v for k, v in doc.items() if k not in ("num", "den", "dt", "delay_s")}
         meta.setdefault("method", "transfer-function")
@@ -216,11 +222,18 @@ def load_model(path) -> tuple[ct.StateSpace, float, dict]:
             raise ConfigError("unsupported version", file=file, field="version", expected=VERSION, got=ver)
         A = _matrix(doc, "A", file)
         n = A.shape[0]
+        if n > MAX_ORDER:
+            raise ConfigError("model order too high", file=file, field="A",
+                              expected=f"at most {MAX_ORDER} states", got=f"{n} states")
         if A.shape != (n, n):
             raise ConfigError("not square", file=file, field="A", expected="an n x n matrix", got=list(A.shape))
         B = _matrix(doc, "B", file, (n, None))
         C = _matrix(doc, "C", file, (None, n))
         D = _matrix(doc, "D", file, (C.shape[0], B.shape[1]))
+        if not np.any(D) and not (np.any(B) and np.any(C)):
+            raise ConfigError("the model is zero (no input reaches the output)", file=file,
+                              field="B" if not np.any(B) else "C", expected="a non-zero matrix", got=doc.get(
+                                  "B" if not np.any(B) else "C"))
         sys = ct.ss(A, B, C, D, dt)
         meta = {k: v for k, v in doc.items() if k not in ("A", "B", "C", "D", "dt", "delay_s")}
         if doc.get("K") is not None:

@@ -11,7 +11,12 @@ Specs accepted by :func:`get_executor`:
 ``"local"``   :class:`concurrent.futures.ProcessPoolExecutor` (the default).
 ``"dask"``    a ``dask.distributed.LocalCluster`` started for the run (one thread per worker process).
 ``"dask://HOST:PORT"``  an existing Dask scheduler; connecting is bounded by ``timeout_s`` and a scheduler
-that does not answer gives an :class:`ExecutorError` naming the address.
+that does not answer, or has no worker within ``timeout_s``, gives an :class:`ExecutorError` naming the address.
+Connect only to a scheduler you trust: Dask sends pickled objects, which run code in this process when they
+are unpickled (docs/security.md).
+
+Local pool workers die with their parent (``prctl(PR_SET_PDEATHSIG)`` on Linux): a pipeline killed with
+SIGKILL leaves no worker computing for nobody.
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ import multiprocessing
 import os
 import signal
 import socket
+import sys
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -84,10 +90,36 @@ class SerialExecutor(Executor):
         return out
 
 
-def _ignore_sigint():
-    """Pool-worker initializer: Ctrl-C reaches the whole process group, and only the parent should handle it
-    (it stops the workers); otherwise every worker printed its own KeyboardInterrupt traceback."""
+_PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Ask the kernel to kill this process when its parent dies (Linux ``prctl(PR_SET_PDEATHSIG, SIGKILL)``).
+
+    A pool worker otherwise outlives a parent killed with SIGKILL (or crashed) by minutes, computing for
+    nobody and holding what it inherited. Elsewhere, and should the parent already be gone, the worker
+    checks its parent instead.
+    """
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:  # ctypes, not a dependency: prctl is one libc call
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the request took effect
+        os._exit(1)
+
+
+def _worker_init(parent_pid: int) -> None:
+    """Pool-worker initializer: die with the parent; leave Ctrl-C to the parent (it reaches the whole process
+    group, and the parent stops the workers: otherwise every worker printed its own KeyboardInterrupt
+    traceback); SIGTERM and SIGHUP end a worker at once (a forked worker inherits the CLI's handlers, which
+    turn them into KeyboardInterrupt for the parent's clean-up)."""
+    _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
 class LocalExecutor(Executor):
@@ -107,7 +139,7 @@ class LocalExecutor(Executor):
             return SerialExecutor().map(fn, items, desc=desc, progress=progress)
         if self._pool is None:
             self._pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=self._ctx,
-                                                initializer=_ignore_sigint)
+                                                initializer=_worker_init, initargs=(os.getpid(),))
         futs = [self._pool.submit(fn, it) for it in items]
         try:
             with _bar(len(items), desc, progress) as bar:
@@ -161,7 +193,7 @@ class DaskExecutor(Executor):
         else:
             self.name = f"dask://{address.removeprefix('tcp://')}"
             self.client = _connect(Client, address, float(timeout_s))
-            self.workers = max(1, len(self.client.scheduler_info().get("workers", {})))
+            self.workers = _wait_for_workers(self.client, address, float(timeout_s))
 
     def map(self, fn, items, *, desc=None, progress=False):
         from dask.distributed import as_completed
@@ -214,6 +246,22 @@ def _connect(Client, address: str, timeout_s: float):
         return Client(address, timeout=f"{timeout_s}s")
     except (OSError, TimeoutError) as exc:
         raise ExecutorError(f"the Dask scheduler at {address} stopped answering ({exc}); {hint}") from None
+
+
+def _wait_for_workers(client, address: str, timeout_s: float) -> int:
+    """The number of workers of the scheduler ``client`` is connected to, waiting up to ``timeout_s`` for the
+    first: a scheduler without workers accepts tasks and never runs them, so a run waited for ever."""
+    n = len(client.scheduler_info().get("workers", {}))
+    if n:
+        return n
+    try:
+        client.wait_for_workers(1, timeout=timeout_s)
+    except (TimeoutError, OSError) as exc:
+        client.close()
+        raise ExecutorError(f"the Dask scheduler at {address} has no workers (none joined within {timeout_s:g} s: "
+                            f"{type(exc).__name__}); start some with `dask worker {address}` or use --executor "
+                            "local") from None
+    return max(1, len(client.scheduler_info().get("workers", {})))
 
 
 def get_executor(spec: str | None = "local", max_workers: int | None = None, timeout_s: float = 10.0) -> Executor:

@@ -76,6 +76,11 @@ class GainSet:
         return "\n".join(lines) + "\n"
 
 
+#: largest magnitude of a gain or filter constant (shipped sets: at most about 20): kp = 1e300 reached the tuner as
+#: "the interconnection is not well posed" and the flight software as overflow
+MAX_GAIN = 1e6
+
+
 def _loop(t: Table, *, outer: bool) -> LoopGains:
     vals = {
         "kp": t.num("kp"),
@@ -94,7 +99,7 @@ def _loop(t: Table, *, outer: bool) -> LoopGains:
 
 def parse_gains(data: dict, name: str = "custom", src="<gains>") -> GainSet:
     """Validate a parsed TOML mapping into a :class:`GainSet`; errors name the file and field."""
-    top = Table(src, data)
+    top = Table(src, data, magnitude=(0.0, MAX_GAIN))
     if "pitch" not in top:
         raise top.error("pitch", "missing axis", expected="tables [pitch.outer] and [pitch.inner]", got=sorted(data))
     axes = {}

@@ -60,7 +60,7 @@ def decode_metadata(md: dict | None, source: str = "log") -> tuple[dict, dict]:
             continue
         try:
             val = json.loads(md[key])
-        except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
+        except (ValueError, UnicodeDecodeError, RecursionError) as exc:  # JSONDecodeError is a ValueError
             raise DataError(f"{source}: schema metadata '{key.decode()}': expected a JSON object; "
                             f"got unreadable JSON ({exc})") from None
         if not isinstance(val, dict):

@@ -9,7 +9,6 @@ frequency in rad/s, input delay included).
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -17,6 +16,7 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from rotorlab import atomic
+from rotorlab.config import check_input_file, read_json_object
 from rotorlab.errors import DataError
 from rotorlab.logformat import decode_metadata
 
@@ -91,13 +91,15 @@ def read_run(path) -> dict:
     log = p / "log.parquet" if p.is_dir() else p
     if not log.is_file():
         raise DataError(f"{p}: no run log (expected a run folder with log.parquet, as rotorlab run --out writes)")
+    check_input_file(log, "run log")  # a FIFO or a device would block or never end
+    atomic.note_input(log)
     try:
         tbl = pq.read_table(log)
     except Exception as exc:  # noqa: BLE001 - pyarrow raises several types for a file that is not Parquet
         raise DataError(f"{log}: not a readable Parquet log ({exc})") from None
     units, meta = decode_metadata(tbl.schema.metadata)
     info_path = log.parent / "run.json"
-    info = json.loads(info_path.read_text()) if info_path.is_file() else dict(meta or {})
+    info = read_json_object(info_path, "run record") if info_path.exists() else dict(meta or {})
     cols = {c: tbl.column(c).to_numpy().astype(float) for c in tbl.column_names}
     if "t" not in cols:
         raise DataError(f"{log}: no time column 't'")

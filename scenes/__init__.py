@@ -163,11 +163,14 @@ def build_scene(scene: str, vehicle, physics_dt_s: float = PHYSICS_DT_S, edit=No
     else:
         _free_flight(s, v)
     has_anchor = bool(edit(s, scene, v)) if edit else False
-    _hover_keyframe(s, v, scene)
-    try:
+    try:  # both compiles: the keyframe's reads the model first (MuJoCo refuses e.g. a body with no mass)
+        _hover_keyframe(s, v, scene)
         model = s.compile()
     except ValueError as exc:
-        raise ConfigError(f"MuJoCo could not compile the {scene} scene for {v.name}: {exc}", file=v.path) from None
+        msg = " ".join(str(exc).split())
+        raise ConfigError(f"MuJoCo could not compile the {scene} scene for {v.name}: {msg}", file=v.path,
+                          expected="physical values of a flying multirotor") from None
+
     def ids(kind: str) -> np.ndarray:
         # the vehicle's rotors 1..n that have actuator ``kind`` (a thrust stand has rotor 1 only)
         return np.array([model.actuator(f"{PREFIX}{kind}{i}").id for i in range(1, v.n_rotors + 1)

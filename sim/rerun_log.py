@@ -46,9 +46,9 @@ def check_rrd_path(path) -> Path:
     that does not exist or is not writable."""
     p = Path(path)
     if p.suffix != ".rrd":
-        raise ConfigError("a rerun recording is a .rrd file", field="rerun", expected="a path ending in .rrd", got=str(p))
+        raise ConfigError("a rerun recording is a .rrd file", field="--rerun", expected="a path ending in .rrd", got=str(p))
     if p.is_dir():
-        raise ConfigError("the recording path is a directory", field="rerun", expected="a file path", got=str(p))
+        raise ConfigError("the recording path is a directory", field="--rerun", expected="a file path", got=str(p))
     # a probe file is the only reliable test (permissions, read-only or virtual file systems, running as root)
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
@@ -57,7 +57,7 @@ def check_rrd_path(path) -> Path:
         if p.exists() and not os.access(p, os.W_OK):
             raise PermissionError(f"{p} is read-only")
     except OSError as exc:
-        raise ConfigError(f"cannot write the recording there ({exc.strerror or exc})", field="rerun",
+        raise ConfigError(f"cannot write the recording there ({exc.strerror or exc})", field="--rerun",
                           expected="a writable location", got=str(p)) from None
     return p
 
@@ -241,7 +241,7 @@ def record_run(result_or_log, path, *, scene: str | None = None, vehicle=None, i
     try:
         atomic.write_bytes(p, data)
     except OSError as exc:
-        raise ConfigError(f"cannot write the recording ({exc.strerror or exc})", field="rerun",
+        raise ConfigError(f"cannot write the recording ({exc.strerror or exc})", field="--rerun",
                           expected="a writable location with room for the file", got=str(p)) from None
     return p
 

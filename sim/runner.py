@@ -11,7 +11,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from rotorlab import atomic, autopilots
-from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet, load_gains
 from rotorlab.scenes import PHYSICS_DT_S
 from rotorlab.sim import scenarios
@@ -22,7 +22,7 @@ from rotorlab.sim.control.statespace import StateSpaceController, as_controller_
 from rotorlab.sim.log import RunLog, write_run
 from rotorlab.sim.poses import PoseTrack
 from rotorlab.sim.simulator import Simulator, vehicle_mixer
-from rotorlab.vehicles import DEFAULT_VEHICLE, gains_path, list_gains, load_vehicle, vehicle_provenance
+from rotorlab.vehicles import DEFAULT_VEHICLE, gains_path, load_vehicle, vehicle_provenance
 
 # Standard log columns (flight-software units); the pitch channel is named as the papers name it.
 BASE_COLUMNS = {
@@ -63,10 +63,8 @@ def resolve_gains(vehicle, gains) -> GainSet | None:
         return load_gains(p)
     if p.suffix == ".toml":
         raise ConfigError("gains file not found", file=p)
-    try:
-        return load_gains(gains_path(vehicle.name, str(gains)))
-    except UnknownNameError:
-        raise UnknownNameError(f"gain set of {vehicle.name}", str(gains), list_gains(vehicle.name)) from None
+    # the sets beside the vehicle's own file, never looked up by its name (rotorlab.vehicles.gains_dir)
+    return load_gains(gains_path(vehicle, str(gains)))
 
 
 def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: float | None = None,

@@ -294,7 +294,8 @@ def test_tune_counts(tmp_path, capsys, flag, value):
     with pytest.raises(SystemExit) as exc:
         main(["tune", "--model", "m.json", "--spec", "anteos-p2a2", "--out", str(tmp_path / "g.toml"), flag, value])
     assert exc.value.code == 2
-    assert f"argument {flag}: expected a whole number >= 1, got {value}" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"argument {flag}: expected a whole number in [1, " in err and f"got {value}" in err
 
 
 def test_vehicle_delay_not_a_physics_step(tmp_path, capsys):
@@ -514,3 +515,710 @@ def test_helpers_make_a_valid_log(tmp_path, capsys):
     rc, out, _ = cli(capsys, "ident", _log(tmp_path), "--method", "pi-moesp", "--input", "u", "--output", "y",
                      "--order", "1", "--horizon", "10", "--out", tmp_path / "m.json")
     assert rc == 0 and math.isfinite(json.loads((tmp_path / "m.json").read_text())["vaf"][0])
+
+
+# == issue 26, deliverable 7: every fault class fixed at its root ===============================================
+def _cli_subprocess(*argv, timeout=120):
+    """The CLI as a user runs it, in a subprocess (a fault that hangs or fills the memory must not take the test
+    process with it): returns (exit status, stdout, stderr)."""
+    r = subprocess.run([*CLI, *map(str, argv)], env=ENV, capture_output=True, text=True, timeout=timeout)
+    return r.returncode, r.stdout, r.stderr
+
+
+def _running(pid: int) -> bool:
+    """Whether ``pid`` is a live process (a zombie waiting to be reaped is not)."""
+    try:
+        stat_ = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat_.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def _children(pid: int) -> list[int]:
+    kids = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            kids += [int(x) for x in (task / "children").read_text().split()]
+        except OSError:
+            pass
+    return kids
+
+
+def _group(pgid: int) -> list[int]:
+    """Live processes of the process group ``pgid``."""
+    found = []
+    for st in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = st.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if fields[0] != "Z" and int(fields[2]) == pgid:
+            found.append(int(st.parent.name))
+    return found
+
+
+def _foreign_vehicle(folder: Path, name: str = "my-quad", gains: str | None = "optimal-testbed") -> Path:
+    """A vehicle of one's own: the P2-A2's numbers under another name in ``folder/vehicle.toml``, with the shipped
+    gain set ``gains`` as its ``gains/standard.toml`` (none when None)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    v = folder / "vehicle.toml"
+    v.write_text(P2A2.read_text().replace('name = "anteos-p2a2"', f'name = "{name}"', 1))
+    if gains:
+        (folder / "gains").mkdir(exist_ok=True)
+        (folder / "gains" / "standard.toml").write_bytes((P2A2.parent / "gains" / f"{gains}.toml").read_bytes())
+    return v
+
+
+# -- errors cross process boundaries intact ----------------------------------------------------------------
+def _project_exception_classes() -> list[type]:
+    import importlib
+    import pkgutil
+
+    import rotorlab
+
+    found = {}
+    for pkg_name in ("rotorlab", "rotorlab.sim", "rotorlab.ident", "rotorlab.tune", "rotorlab.vehicles",
+                     "rotorlab.scenes"):
+        pkg = importlib.import_module(pkg_name)
+        mods = [pkg] + [importlib.import_module(m.name) for m in pkgutil.walk_packages(pkg.__path__, f"{pkg_name}.")
+                        if not m.name.endswith("__main__")]
+        for mod in mods:
+            for obj in vars(mod).values():
+                if (isinstance(obj, type) and issubclass(obj, BaseException)
+                        and obj.__module__.startswith(rotorlab.__name__)):
+                    found[f"{obj.__module__}.{obj.__qualname__}"] = obj
+    return [found[k] for k in sorted(found)]
+
+
+def _instance(cls):
+    """An instance of ``cls`` from its own signature: every required positional argument filled."""
+    import inspect
+
+    args = []
+    for p in list(inspect.signature(cls.__init__).parameters.values())[1:]:
+        if p.default is p.empty and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD):
+            args.append(["b", "a"] if p.name == "valid" else f"<{p.name}>")
+    return cls(*args)
+
+
+def test_every_project_exception_survives_pickling():
+    """A pool worker's error reaches the parent pickled: every exception class of the project (walked, not
+    listed) round-trips with its type, message and fields, whatever its __init__ takes."""
+    import pickle
+
+    from rotorlab.errors import UnknownNameError
+
+    classes = _project_exception_classes()
+    names = {c.__name__ for c in classes}
+    assert {"ConfigError", "UnknownNameError", "DataError", "CLIError", "ExecutorError", "PipelineError",
+            "Diverged"} <= names, names
+    cases = [_instance(c) for c in classes]
+    cases += [ConfigError("too big", file="v.toml", field="airframe.mass_kg", expected="<= 1000", got=10**5000),
+              UnknownNameError("vehicle", "my-quad", ["anteos-p2a2"])]
+    for exc in cases:
+        back = pickle.loads(pickle.dumps(exc))
+        assert type(back) is type(exc) and str(back) == str(exc) and back.args == exc.args, exc
+        assert vars(back) == vars(exc), exc
+    assert cases[-2].field == "airframe.mass_kg" and "an integer of about 5000 digits" in str(cases[-2])
+
+
+def _raise_unknown(i):
+    from rotorlab.errors import UnknownNameError
+
+    raise UnknownNameError("gain set of my-quad", f"set{i}", ["standard"])
+
+
+def test_a_workers_error_reaches_the_parent_intact():
+    """The measured crash: UnknownNameError raised in a pool worker could not be unpickled in the parent."""
+    from rotorlab.errors import UnknownNameError
+    from rotorlab.executor import LocalExecutor
+
+    with LocalExecutor(2) as ex, pytest.raises(UnknownNameError, match=r"unknown gain set of my-quad 'set\d'"):
+        ex.map(_raise_unknown, [1, 2])
+
+
+# -- data loss: outputs never overwrite inputs -------------------------------------------------------------
+def _run_folder(tmp_path, name="run") -> Path:
+    rc = main(["run", "rest", "--scene", "pitch-rig", "--duration", "0.1", "--out", str(tmp_path / name)])
+    assert rc == 0
+    return tmp_path / name
+
+
+@pytest.mark.parametrize("case", ["ident", "ident-symlink", "ident-hardlink", "ident-cv", "plot-log", "plot-json",
+                                  "compare", "bode", "tune-start", "tune-start-readonly", "tune-model", "tune-spec"])
+def test_an_output_that_is_an_input_is_refused(tmp_path, capsys, case):
+    log, model = _log(tmp_path), _model(tmp_path)
+    ident = ["ident", log, "--method", "pi-moesp", "--input", "u", "--output", "y", "--order", "1",
+             "--horizon", "10"]
+    tune = ["tune", "--model", model, "--spec", "anteos-p2a2", "--starts", "1", "--max-iter", "1", "--jobs", "1"]
+    gains = tmp_path / "g.toml"
+    gains.write_bytes((P2A2.parent / "gains" / "optimal-testbed.toml").read_bytes())
+    if case.startswith("ident"):
+        victim = log
+        if case == "ident-symlink":
+            (tmp_path / "m.json").symlink_to(log)
+            argv = [*ident, "--out", tmp_path / "m.json"]
+        elif case == "ident-hardlink":
+            os.link(log, tmp_path / "m.json")
+            argv = [*ident, "--out", tmp_path / "m.json"]
+        elif case == "ident-cv":
+            victim = tmp_path / "cv.parquet"
+            victim.write_bytes(log.read_bytes())
+            argv = [*ident, "--cv-log", victim, "--out", victim]
+        else:
+            argv = [*ident, "--out", log]
+    elif case.startswith("plot") or case == "compare":
+        run = _run_folder(tmp_path)
+        victim = run / ("run.json" if case == "plot-json" else "log.parquet")
+        argv = (["plot", run, "--out", victim] if case.startswith("plot")
+                else ["compare", run, _run_folder(tmp_path, "other"), "--out", victim])
+    elif case == "bode":
+        victim, argv = model, ["bode", model, "--out", model]
+    elif case.startswith("tune-start"):
+        victim, argv = gains, [*tune, "--start", gains, "--out", gains]
+        if case.endswith("readonly"):
+            gains.chmod(0o444)
+    elif case == "tune-model":
+        victim, argv = model, [*tune, "--start", gains, "--out", model]
+    else:
+        victim = tmp_path / "spec.toml"
+        victim.write_bytes(SPEC.read_bytes())
+        argv = [*tune[:4], victim, *tune[5:], "--start", gains, "--out", victim]
+    before = victim.read_bytes()
+    bad(capsys, *argv, says=("--out", "the output is the input file", "expected an output path"))
+    assert victim.read_bytes() == before
+
+
+def test_an_atomic_write_never_replaces_an_input_of_the_running_command(tmp_path):
+    """The last line of defence, whatever the command: while a command runs, an input read through the one
+    reader (or noted) cannot be replaced by an atomic write; outside a command nothing is recorded."""
+    from rotorlab.config import read_toml
+
+    g = tmp_path / "g.toml"
+    g.write_bytes((P2A2.parent / "gains" / "standard.toml").read_bytes())
+    with atomic.guarding_inputs():
+        read_toml(g, "gains")
+        with pytest.raises(ConfigError, match="the output is the input file"):
+            atomic.write_text(g, "x = 1\n")
+        with pytest.raises(ConfigError, match="the output is the input file"):
+            atomic.write_text(tmp_path / "sub" / ".." / "g.toml", "x = 1\n")
+        atomic.write_text(tmp_path / "other.toml", "x = 1\n")
+    read_toml(g, "gains")
+    atomic.write_text(g, "x = 2\n")  # a library caller outside a command
+    assert g.read_text() == "x = 2\n"
+
+
+@pytest.mark.parametrize("argv", [
+    ["tune", "--model", "MODEL", "--spec", "anteos-p2a2", "--out", "DIR"],
+    ["bode", "MODEL", "--out", "DIR"],
+    ["plot", "RUN", "--out", "DIR"],
+    ["ident", "LOG", "--method", "pi-moesp", "--input", "u", "--output", "y", "--out", "DIR"],
+], ids=["tune", "bode", "plot", "ident"])
+def test_an_output_file_that_is_a_folder_names_the_option(tmp_path, capsys, argv):
+    (tmp_path / "dir").mkdir()
+    subs = {"MODEL": _model(tmp_path), "DIR": tmp_path / "dir", "LOG": _log(tmp_path)}
+    if "RUN" in argv:
+        subs["RUN"] = _run_folder(tmp_path)
+    err = bad(capsys, *[subs.get(a, a) for a in argv], says=("--out", "is an existing folder"))
+    assert ".tmp" not in err
+
+
+def test_run_out_that_is_a_file_names_the_option(tmp_path, capsys):
+    f = tmp_path / "f"
+    f.write_text("mine")
+    bad(capsys, *run_rest(P2A2, tmp_path)[:-1], f, says=("--out", "is an existing file"))
+    assert f.read_text() == "mine"
+
+
+def _finished_manifest(out: Path, **changes) -> dict:
+    from rotorlab import __version__
+    from rotorlab.pipeline.settings import FORMAT_VERSION, settings_for
+
+    man = {"format": "rotorlab-pipeline", "format_version": FORMAT_VERSION, "rotorlab_version": __version__,
+           "vehicle": "anteos-p2a2", "seed": 0, "level": "tiny", "settings": settings_for("tiny"),
+           "stages": {"experiments": {"hash": "h", "output_hash": "o", "seconds": 1.0}}}
+    man.update(changes)
+    out.mkdir(parents=True)
+    (out / "manifest.json").write_text(json.dumps(man))
+    return man
+
+
+@pytest.mark.parametrize("argv,says", [
+    (["--seed", "1"], ("with seed 0 (--seed), not 1",)),
+    (["--n-mc", "7"], ("--n-boot/--n-mc", "'n_mc': 20", "'n_mc': 7")),
+    (["--quick"], ("with level tiny", "not quick")),
+], ids=["seed", "n-mc", "level"])
+def test_pipeline_into_a_folder_of_another_run_is_refused(tmp_path, capsys, argv, says):
+    """Re-running into a finished folder with another --seed (or size, or level) replaced its results without a
+    word; it is refused, the folder untouched. The same settings resume (the pipeline tests)."""
+    out = tmp_path / "pl"
+    _finished_manifest(out)
+    before = (out / "manifest.json").read_bytes()
+    args = ["pipeline", "--out", out, *argv] + ([] if "--quick" in argv else ["--tiny"])
+    bad(capsys, *args, says=(str(out), "re-running into it would replace its results", *says))
+    assert (out / "manifest.json").read_bytes() == before and sorted(p.name for p in out.iterdir()) == \
+        ["manifest.json"]
+
+
+# -- kill: workers die with their parent, the lock is the pipeline's only, SIGTERM writes what it has -------
+def test_pool_workers_die_with_a_killed_parent(tmp_path):
+    code = ("import os, sys, time\n"
+            "from rotorlab.executor import LocalExecutor\n"
+            "def nap(i):\n    time.sleep(120)\n"
+            "ex = LocalExecutor(2)\n"
+            "import threading\n"
+            "threading.Thread(target=ex.map, args=(nap, [1, 2]), daemon=True).start()\n"
+            "time.sleep(600)\n")
+    p = subprocess.Popen([sys.executable, "-c", code], env=ENV, start_new_session=True)
+    try:
+        t0 = time.perf_counter()
+        while len(_children(p.pid)) < 2 and time.perf_counter() - t0 < 60:
+            time.sleep(0.1)
+        workers = _children(p.pid)
+        assert len(workers) >= 2, "the pool did not start"
+        os.kill(p.pid, signal.SIGKILL)  # the parent only: the kernel must take its workers
+        p.wait()
+        t0 = time.perf_counter()
+        while any(map(_running, workers)) and time.perf_counter() - t0 < 10:
+            time.sleep(0.1)
+        assert not any(map(_running, workers)), "pool workers outlived their killed parent"
+    finally:
+        for pid in _group(p.pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+def test_the_run_folder_lock_is_never_held_by_a_forked_child(tmp_path):
+    """A forked worker that outlives its killed pipeline held the flock it inherited and refused the re-run,
+    naming the dead pid. The lock lives only in the pipeline process."""
+    from rotorlab.pipeline.runner import run_folder_lock
+
+    out = tmp_path / "pl"
+    code = ("import os, sys, time\nfrom pathlib import Path\n"
+            "from rotorlab.pipeline.runner import run_folder_lock\n"
+            f"with run_folder_lock(Path({str(out)!r})):\n"
+            "    pid = os.fork()\n"
+            "    if pid == 0:\n        time.sleep(120)\n        os._exit(0)\n"
+            "    print(pid, flush=True)\n    time.sleep(120)\n")
+    p = subprocess.Popen([sys.executable, "-c", code], env=ENV, stdout=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    try:
+        child = int(p.stdout.readline())
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait()
+        assert _running(child)  # a plain fork: the orphan lives on ...
+        with run_folder_lock(out):  # ... and does not hold the lock
+            pass
+    finally:
+        for pid in _group(p.pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+def test_a_lock_left_to_a_dead_pipelines_leftovers_is_recognised(tmp_path):
+    """Leftovers of an older rotorlab (workers that kept the flock) are named, with their pids, instead of the
+    dead pipeline as if it were running."""
+    from rotorlab.pipeline.runner import LOCK_NAME, run_folder_lock
+    from rotorlab.pipeline.settings import PipelineError
+
+    out = tmp_path / "pl"
+    out.mkdir()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (out / LOCK_NAME).write_text(f"pid {int(dead.stdout)} on {socket.gethostname()}, started then\n")
+    holder = subprocess.Popen([sys.executable, "-c", "import fcntl, os, sys, time\n"
+                               f"fd = os.open({str(out / LOCK_NAME)!r}, os.O_RDWR)\n"
+                               "fcntl.flock(fd, fcntl.LOCK_EX)\nprint('held', flush=True)\ntime.sleep(120)\n"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(PipelineError, match=rf"no longer running.*pid\(s\) {holder.pid} still hold"), \
+                run_folder_lock(out):
+            pass
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_sigterm_to_run_writes_the_partial_log(tmp_path):
+    out = tmp_path / "r"
+    p = subprocess.Popen([*CLI, "run", "hover", "--duration", "600", "--out", str(out)], env=ENV,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    t0 = time.perf_counter()
+    while not out.exists() and time.perf_counter() - t0 < 120:
+        time.sleep(0.1)
+    time.sleep(3.0)
+    p.send_signal(signal.SIGTERM)  # to the process only, as `kill PID` or a job scheduler does
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 143, err
+    assert "Traceback" not in err and "terminated (SIGTERM)" in err
+    info = json.loads((out / "run.json").read_text())
+    assert info["stopped"] == "interrupted (Ctrl-C)" and 0 < info["rows"] < 30000
+    assert pq.read_table(out / "log.parquet").num_rows == info["rows"]
+
+
+def test_sigkill_of_a_pipeline_leaves_no_process_and_the_rerun_resumes_with_identical_numbers(tmp_path):
+    """The acceptance test: a tiny pipeline killed with SIGKILL in its pool stage leaves no rotorlab process;
+    the same command then resumes (completed stages cached) and every stage's output hash equals an
+    uninterrupted run's."""
+    cmd = [*CLI, "pipeline", "--tiny", "--workers", "2", "--no-progress", "--seed", "3"]
+    ref, out = tmp_path / "ref", tmp_path / "killed"
+    subprocess.run([*cmd, "--out", str(ref)], env=ENV, check=True, capture_output=True, timeout=1200)
+    p = subprocess.Popen([*cmd, "--out", str(out)], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                         start_new_session=True)
+    try:
+        t0 = time.perf_counter()
+        while not ((out / "stages" / "experiments").exists() and len(_children(p.pid)) >= 2) \
+                and time.perf_counter() - t0 < 600:
+            time.sleep(0.05)
+        assert p.poll() is None and len(_children(p.pid)) >= 2, "no pool stage caught running"
+        os.kill(p.pid, signal.SIGKILL)
+        p.wait()
+        t0 = time.perf_counter()
+        while _group(p.pid) and time.perf_counter() - t0 < 10:
+            time.sleep(0.1)
+        assert _group(p.pid) == [], "processes of the killed pipeline survive"
+    finally:
+        for pid in _group(p.pid):
+            os.kill(pid, signal.SIGKILL)
+    r = subprocess.run([*cmd, "--out", str(out)], env=ENV, capture_output=True, text=True, timeout=1200)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "experiments  cached" in r.stdout
+    man_ref, man = (json.loads((d / "manifest.json").read_text())["stages"] for d in (ref, out))
+    assert set(man) == set(man_ref)
+    for stage in man_ref:
+        if stage != "report":  # the report records the run's timings
+            assert man[stage]["output_hash"] == man_ref[stage]["output_hash"], stage
+    s_ref, s = (json.loads((d / "report" / "summary.json").read_text()) for d in (ref, out))
+    assert s["h_lim"] == s_ref["h_lim"]
+
+
+# -- escape: names from files never become paths --------------------------------------------------------------
+@pytest.mark.parametrize("name", ["../../escaped", "a/b", "..", "", ".hidden", "x" * 65, "a\nb"])
+def test_a_vehicle_name_that_is_not_a_safe_name_is_refused(tmp_path, capsys, monkeypatch, name):
+    monkeypatch.chdir(tmp_path)
+    v = edited(tmp_path, P2A2, 'name = "anteos-p2a2"', f"name = {json.dumps(name)}")
+    bad(capsys, "run", "rest", "--scene", "pitch-rig", "--vehicle", v, "--duration", "0.04",
+        says=(str(v), "'vehicle.name'", "letters, digits"))
+    assert not (tmp_path.parent / "rest-escaped-seed0").exists() and not (tmp_path / "runs").exists()
+
+
+def test_a_spec_vehicle_that_is_a_path_is_refused(tmp_path, capsys):
+    evil = tmp_path / "evil"
+    (evil / "gains").mkdir(parents=True)
+    (evil / "gains" / "standard.toml").write_bytes((P2A2.parent / "gains" / "standard.toml").read_bytes())
+    rel = os.path.relpath(evil, VEHICLES_DIR)
+    s = edited(tmp_path, SPEC, 'vehicle = "anteos-p2a2"', f'vehicle = "{rel}"', "spec.toml")
+    bad(capsys, "tune", "--model", _model(tmp_path), "--spec", s, "--out", tmp_path / "o.toml",
+        says=(str(s), "'meta.vehicle'", "letters, digits", rel))
+
+
+def test_a_gain_set_name_is_never_a_path(tmp_path):
+    from rotorlab.errors import UnknownNameError
+    from rotorlab.vehicles import gains_path
+
+    (P2A2.parent / "gains" / "standard.toml").resolve()
+    with pytest.raises(UnknownNameError, match="valid: optimal-flight, optimal-testbed, standard"):
+        gains_path("anteos-p2a2", "../../anteos-a2minib/gains/optimal")
+
+
+# -- own vehicles work everywhere a shipped one does ---------------------------------------------------------
+def test_a_vehicle_of_ones_own_flies_the_gain_sets_beside_its_file(tmp_path, capsys):
+    """`run --vehicle my.toml` without --gains looked the default set up by the file's [vehicle] name among the
+    shipped vehicles (unknown vehicle 'my-quad'); it flies gains/standard.toml beside the file."""
+    from rotorlab.gains import load_gains
+
+    v = _foreign_vehicle(tmp_path / "my-quad")
+    rc, _, _ = cli(capsys, *run_rest(v, tmp_path))
+    assert rc == 0
+    info = json.loads((tmp_path / "r" / "run.json").read_text())
+    assert info["vehicle"] == "my-quad" and info["gains"] == "standard"
+    flown = info["gain_values"]["pitch"]["inner"]["kp"]
+    assert flown == load_gains(P2A2.parent / "gains" / "optimal-testbed.toml")["pitch"].inner.kp
+    assert flown != load_gains(P2A2.parent / "gains" / "standard.toml")["pitch"].inner.kp
+    rc, _, _ = cli(capsys, "run", "hover", "--vehicle", v, "--duration", "0.2", "--out", tmp_path / "h",
+                   "--option", "switch_to=standard")
+    assert rc in (0, 1)
+
+
+def test_a_vehicle_of_ones_own_without_gain_sets_says_how_to_give_them(tmp_path, capsys):
+    v = _foreign_vehicle(tmp_path / "bare", gains=None)
+    bad(capsys, *run_rest(v, tmp_path), says=("vehicle 'my-quad'", "has no gain sets", "--gains FILE.toml",
+                                              str(tmp_path / "bare" / "gains" / "standard.toml")))
+
+
+def test_a_modified_copy_of_a_shipped_vehicle_keeps_its_gain_sets(tmp_path, capsys):
+    v = edited(tmp_path, P2A2, "mass_kg = 5.0 ", "mass_kg = 5.1 ")
+    assert cli(capsys, *run_rest(v, tmp_path))[0] == 0
+    assert json.loads((tmp_path / "r" / "run.json").read_text())["gains"] == "standard"
+
+
+# -- hangs: only regular files, bounded sizes and counts ----------------------------------------------------
+@pytest.mark.parametrize("kind", ["vehicle-fifo", "gains-fifo", "model-fifo", "spec-fifo", "vehicle-zero",
+                                  "model-zero", "vehicle-huge"])
+def test_inputs_that_would_hang_or_fill_the_memory_are_refused_at_once(tmp_path, kind):
+    what, how = kind.split("-")
+    p = tmp_path / (f"in.{'json' if what == 'model' else 'toml'}")
+    if how == "fifo":
+        os.mkfifo(p)
+    elif how == "zero":
+        p.symlink_to("/dev/zero")
+    else:
+        with open(p, "wb") as fh:
+            fh.truncate(33 * 2**20)
+    argv = {"vehicle": ["run", "rest", "--scene", "pitch-rig", "--duration", "0.04", "--vehicle", p],
+            "gains": ["run", "rest", "--scene", "pitch-rig", "--duration", "0.04", "--gains", p],
+            "model": ["bode", p],
+            "spec": ["tune", "--model", _model(tmp_path), "--spec", p]}[what]
+    t0 = time.perf_counter()
+    rc, out, err = _cli_subprocess(*argv, "--out", tmp_path / "o", timeout=60)
+    assert rc == 2 and "Traceback" not in err, err
+    says = {"fifo": "got 'a FIFO'", "zero": "got 'a device'", "huge": "too large"}[how]
+    assert str(p) in err and says in err, err
+    assert time.perf_counter() - t0 < 60
+
+
+@pytest.mark.parametrize("argv,flag", [
+    (["montecarlo", "rest", "--n", "1000000000000"], "--n"),
+    (["montecarlo", "rest", "--n", "1e12"], "--n"),
+    (["montecarlo", "rest", "--workers", "5000"], "--workers"),
+    (["pipeline", "--tiny", "--n-mc", "1000000000"], "--n-mc"),
+    (["pipeline", "--tiny", "--n-boot", "1e9"], "--n-boot"),
+    (["pipeline", "--tiny", "--workers", "300"], "--workers"),
+    (["tune", "--model", "m.json", "--spec", "anteos-p2a2", "--out", "g.toml", "--jobs", "300"], "--jobs"),
+    (["tune", "--model", "m.json", "--spec", "anteos-p2a2", "--out", "g.toml", "--starts", "1000000000"],
+     "--starts"),
+], ids=lambda x: x if isinstance(x, str) else " ".join(x[:1] + x[-2:]))
+def test_every_count_is_bounded_before_work_starts(tmp_path, capsys, monkeypatch, argv, flag):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {flag}: expected a whole number in [1, " in err, err
+    assert not (tmp_path / "runs").exists()
+
+
+def test_a_dask_scheduler_without_workers_times_out(tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    from rotorlab.executor import ExecutorError, get_executor
+
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        addr = cluster.scheduler_address.removeprefix("tcp://")
+        t0 = time.perf_counter()
+        with pytest.raises(ExecutorError, match=f"dask://{addr}|{addr}.*has no workers.*dask worker"):
+            get_executor(f"dask://{addr}", timeout_s=2.0)
+        assert time.perf_counter() - t0 < 30
+
+
+# -- tracebacks: every parser guarded against depth, size and number length ---------------------------------
+def _deep(kind: str) -> str:
+    return {"toml-array": "[x]\ny = " + "[" * 100_000 + "]" * 100_000 + "\n",
+            "toml-table": "[x]\ny = " + "{a = " * 3000 + "1" + "}" * 3000 + "\n",
+            "toml-33": "[x]\ny = " + "[" * 33 + "]" * 33 + "\n"}[kind]
+
+
+@pytest.mark.parametrize("kind", ["toml-array", "toml-table", "toml-33"])
+def test_deeply_nested_toml_is_an_error(tmp_path, capsys, kind):
+    v = tmp_path / "vehicle.toml"
+    v.write_text(P2A2.read_text() + "\n" + _deep(kind))
+    bad(capsys, *run_rest(v, tmp_path), says=(str(v), "nested too deeply"))
+
+
+@pytest.mark.parametrize("doc,says", [
+    ('{"num": ' + "[" * 100_000 + "]" * 100_000 + ', "den": [1, 1]}', "nested too deeply"),
+    ('{"num": [' + "9" * 5000 + '], "den": [1, 1], "dt": 0}', "'num'"),
+    ('{"num": [' + "9" * 400 + '], "den": [1, 1], "dt": 0}', "'num'"),
+    ('{"num": [1], "den": [1, 1], "dt": ' + "9" * 5000 + "}", "'dt'"),
+    ('{"num": [1], "den": [1, 1e999], "dt": 0}', "'den'"),
+    ('{"num": [0, 0], "den": [1, 2, 3], "dt": 0}', "the model is zero"),
+    ('[1, 2]', "the top level must be an object"),
+    ('{"num": [1], "den": [1' + ", 0.5" * 300 + '], "dt": 0.02}', "model order too high"),
+], ids=["deep", "5000-digits", "400-digits", "dt-5000-digits", "inf", "zero", "list", "order-300"])
+def test_bad_model_json_is_an_error(tmp_path, capsys, doc, says):
+    m = tmp_path / "m.json"
+    m.write_text(doc)
+    err = bad(capsys, "bode", m, "--out", tmp_path / "b.png", says=(str(m), says))
+    assert len(err) < 1000
+
+
+@pytest.mark.parametrize("field,old,new", [
+    ("airframe.mass_kg", "mass_kg = 5.0 ", "mass_kg = " + "9" * 5000 + " "),
+    ("airframe.mass_kg", "mass_kg = 5.0 ", "mass_kg = " + "9" * 400 + " "),
+    ("flight_software.rate_hz", "[commands]", "[flight_software]\nrate_hz = 333\n\n[commands]"),
+    ("flight_software.rate_hz", "[commands]", "[flight_software]\nrate_hz = 1e5\n\n[commands]"),
+], ids=["5000-digits", "400-digits", "rate-333", "rate-1e5"])
+def test_vehicle_numbers_that_crashed_are_errors(tmp_path, capsys, field, old, new):
+    v = edited(tmp_path, P2A2, old, new)
+    err = bad(capsys, *run_rest(v, tmp_path), says=(str(v), f"'{field}'"))
+    assert len(err) < 1000
+
+
+@pytest.mark.parametrize("what", ["corrupt", "deep", "list", "binary"])
+@pytest.mark.parametrize("command", ["plot", "view", "compare"])
+def test_a_corrupt_run_json_is_an_error(tmp_path, capsys, what, command):
+    run = _run_folder(tmp_path)
+    (run / "run.json").write_bytes({"corrupt": b'{"scenario": ', "deep": b"[" * 100_000 + b"]" * 100_000,
+                                    "list": b"[1, 2]", "binary": b"\xff\xfe\x00garbage"}[what])
+    argv = {"plot": ["plot", run, "--out", tmp_path / "p.png"], "view": ["view", run, "--print"],
+            "compare": ["compare", run, _run_folder(tmp_path, "other"), "--out", tmp_path / "c.png"]}[command]
+    bad(capsys, *argv, says=(str(run / "run.json"),))
+
+
+def test_a_deeply_nested_option_is_an_error(tmp_path, capsys):
+    bad(capsys, *run_rest(P2A2, tmp_path), "--option", "level=" + "[" * 5000 + "]" * 5000,
+        says=("--option level", "nested at most"))
+
+
+# -- silently wrong ----------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("output", ["q", "theta_ref", "theta", "rotor_pct"])
+def test_a_controller_that_sets_a_measured_signal_is_refused(tmp_path, capsys, output):
+    """A controller output named 'q' replaced the measured rate in the log (after the loops had used it)."""
+    c = tmp_path / "c.json"
+    c.write_text(json.dumps({"format": "rotorlab-controller/1", "dt_s": 0.02, "inputs": ["theta"],
+                             "outputs": [output], "A": [[0.0]], "B": [[0.0]], "C": [[0.0]], "D": [[1.0]]}))
+    bad(capsys, *run_rest(P2A2, tmp_path), "--controller", c, says=(str(c), "'outputs'", "u_lon", output))
+
+
+def _flight_software_with(plugin):
+    """The P2-A2's flight software for the rest scenario with ``plugin`` appended."""
+    from rotorlab.gains import load_gains
+    from rotorlab.sim import scenarios
+    from rotorlab.sim.runner import make_flight_software
+    from rotorlab.vehicles import load_vehicle
+
+    v = load_vehicle("anteos-p2a2")
+    ctx = scenarios.Context(vehicle=v, scene="pitch-rig", gains=None, seed=0, duration_s=1.0, options={},
+                            dt_s=v.control_dt_s)
+    fs = make_flight_software(v, load_gains(P2A2.parent / "gains" / "standard.toml"), scenarios.get("rest").setup(ctx))
+    fs.plugins.append(plugin)
+    return fs, {k: 0.0 for k in ("phi", "theta", "psi", "p", "q", "r")}
+
+
+def test_a_plugin_cannot_overwrite_a_signal_of_the_flight_software():
+    """The same rule for any plug-in: commands and new names only (the log keeps the true measurement)."""
+    from rotorlab.sim.control.plugins import CallbackPlugin
+
+    fs, meas = _flight_software_with(CallbackPlugin(lambda t, s: {"estimate": 1.0, "q": 0.0}))
+    with pytest.raises(ConfigError, match="returns 'q', a signal of the flight software"):
+        fs.step(0.0, meas)
+
+
+def test_a_plugin_may_log_its_own_signals_every_tick():
+    from rotorlab.sim.control.plugins import CallbackPlugin
+
+    fs, meas = _flight_software_with(CallbackPlugin(lambda t, s: {"estimate": t, "u_lon": 1.5}))
+    for k in range(3):
+        sig = fs.step(k * fs.dt, meas)
+    assert sig["estimate"] == 2 * fs.dt and sig["u_lon"] == 1.5
+
+
+def test_montecarlo_delay_spread_stays_within_the_files_range(tmp_path, capsys):
+    """--vary delay=5 drew 3.4-4.0 s delays on a vehicle whose file caps rotor.delay_s at 1 s."""
+    bad(capsys, "montecarlo", "rest", "--n", "2", "--vary", "delay=5", "--out", tmp_path / "mc",
+        says=("--vary delay", "at most 0.94 s", "rotor.delay_s", "[0, 1] s", "got 5"))
+    bad(capsys, "montecarlo", "gust", "--n", "2", "--vary", "wind=1e300", "--out", tmp_path / "mc",
+        says=("--vary wind", "at most 50 m/s"))
+    assert not (tmp_path / "mc").exists()
+
+
+# -- vague: messages name the file's field and the rule ------------------------------------------------------
+def test_a_mass_the_rotors_cannot_carry_names_mass_kg(tmp_path, capsys):
+    v = edited(tmp_path, P2A2, "mass_kg = 5.0 ", "mass_kg = 1000 ")
+    err = bad(capsys, *run_rest(v, tmp_path), says=(str(v), "'airframe.mass_kg'", "rotor.thrust_slope_N_per_rad",
+                                                    "got 1000"))
+    assert "hover_collective_pct" not in err
+
+
+def test_an_empty_tune_list_names_the_field(tmp_path, capsys):
+    s = edited(tmp_path, SPEC, 'tune = ["outer.kp", "outer.kd", "outer.tf", "inner.kp", "inner.ki", "inner.kd", '
+                               '"inner.tf"]', "tune = []", "spec.toml")
+    err = bad(capsys, "tune", "--model", _model(tmp_path), "--spec", s, "--out", tmp_path / "o.toml",
+              says=(str(s), "'cascade.tune'", "nothing to tune"))
+    assert "reshape" not in err
+
+
+@pytest.mark.parametrize("field,old,new", [
+    ("airframe.arm_m", "arm_m = 0.415 ", "arm_m = 1e300 "),
+    ("rotor.radius_m", "radius_m = 0.27 ", "radius_m = 1e-300 "),
+    ("rotor.rotor_speed_rad_s", "rotor_speed_rad_s = 316.0 ", "rotor_speed_rad_s = 1e300 "),
+    ("rotor.blade_pitch_per_pct_rad", "blade_pitch_per_pct_rad = 0.0017143 ", "blade_pitch_per_pct_rad = 1e-300 "),
+    ("commands.limit_pct", "limit_pct = 30.0 ", "limit_pct = 1e300 "),
+    ("airframe.cp_offset_m", "cp_offset_m = [0.0, 0.0, 0.03]", "cp_offset_m = [0.0, 0.0, 1e300]"),
+])
+def test_implausible_magnitudes_name_the_field(tmp_path, capsys, field, old, new):
+    v = edited(tmp_path, P2A2, old, new)
+    bad(capsys, *run_rest(v, tmp_path), says=(str(v), f"'{field}'", "a magnitude in [1e-09, 1e+06]"))
+
+
+def test_pipeline_of_a_vehicle_without_gain_sets_says_so_before_work(tmp_path, capsys):
+    v = _foreign_vehicle(tmp_path / "bare", gains=None)
+    bad(capsys, "pipeline", "--tiny", "--vehicle", v, "--out", tmp_path / "pl",
+        says=("'standard' gain set", str(tmp_path / "bare" / "gains"), "has no gain sets"))
+    assert not (tmp_path / "pl").exists()
+
+
+def test_montecarlo_duration_is_checked_before_the_runs(tmp_path, capsys):
+    """A duration no run can take failed in every worker and was reported as 100 % stopped early, exit 0."""
+    bad(capsys, "montecarlo", "rest", "--n", "2", "--duration", "1e9", "--out", tmp_path / "mc",
+        says=("'duration'", "over half the available memory"))
+    assert not list(tmp_path.glob("mc/*.parquet"))
+
+
+def test_sigterm_to_a_pipeline_stops_its_workers_and_keeps_its_stages(tmp_path):
+    """SIGTERM (`kill PID`, a job scheduler) left the two workers computing for minutes; it is handled as
+    Ctrl-C: the workers are stopped, completed stages kept, exit 143."""
+    out = tmp_path / "pl"
+    p = subprocess.Popen([*CLI, "pipeline", "--tiny", "--workers", "2", "--no-progress", "--seed", "3", "--out",
+                          str(out)], env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    try:
+        t0 = time.perf_counter()
+        while not ((out / "stages" / "experiments").exists() and len(_children(p.pid)) >= 2) \
+                and time.perf_counter() - t0 < 600:
+            time.sleep(0.05)
+        assert p.poll() is None, "the pipeline ended before a pool stage was caught"
+        p.send_signal(signal.SIGTERM)
+        text, err = p.communicate(timeout=120)
+        assert p.returncode == 143, err
+        assert "Traceback" not in text + err and "completed stages are kept" in text
+        t0 = time.perf_counter()
+        while _group(p.pid) and time.perf_counter() - t0 < 10:
+            time.sleep(0.1)
+        assert _group(p.pid) == []
+        assert (out / "stages" / "experiments" / "stage.json").exists()
+    finally:
+        for pid in _group(p.pid):
+            os.kill(pid, signal.SIGKILL)
+
+
+@pytest.mark.parametrize("scenario,option,says", [
+    ("hover", "wind_mps=1e300", ("'options.wind_mps'", "magnitude at most 1e+06")),
+    ("gust", "mean_wind_mps=-1e300", ("'options.mean_wind_mps'", "magnitude at most 1e+06")),
+    ("hover", "wind_mps=1000", ("'V_mps'", "(0, 340] m/s", "mean wind")),
+])
+def test_scenario_options_beyond_any_flight_are_refused(tmp_path, capsys, scenario, option, says):
+    """wind_mps = 1e300 overflowed the turbulence filter into a traceback."""
+    bad(capsys, "run", scenario, "--duration", "1", "--option", option, "--out", tmp_path / "r", says=says)
+
+
+@pytest.mark.parametrize("case,says", [
+    ("spec-dt", ("'cascade.dt'", "0 (continuous design) or at least 0.0001 s", "got 1e-300")),
+    ("delay-samples", ("delay of 1 s is 1e+04 samples", "cascade.dt = 0.0001 s", "at most 200")),
+    ("start-kp", ("'pitch.outer.kp'", "a magnitude of at most 1e+06", "got 1e+300")),
+])
+def test_tuning_sizes_and_gains_beyond_reason_are_refused(tmp_path, capsys, case, says):
+    """A 1e-300 s cycle reached numpy as "Maximum allowed dimension exceeded"; kp = 1e300 as "the interconnection
+    is not well posed"; a 1 s delay at 0.1 ms is 10000 states of every loop analysed."""
+    model, spec, start = _model(tmp_path), SPEC, P2A2.parent / "gains" / "standard.toml"
+    if case == "spec-dt":
+        spec = edited(tmp_path, SPEC, "dt = 0.02 ", "dt = 1e-300 ", "spec.toml")
+    elif case == "delay-samples":
+        spec = edited(tmp_path, SPEC, "dt = 0.02 ", "dt = 0.0001 ", "spec.toml")
+        doc = json.loads(model.read_text())
+        model.write_text(json.dumps({**doc, "delay_s": 1.0}))
+    else:
+        start = tmp_path / "g.toml"
+        text = (P2A2.parent / "gains" / "standard.toml").read_text()
+        import re
+
+        start.write_text(re.sub(r"kp = [0-9.]+", "kp = 1e300", text, count=1))
+    bad(capsys, "tune", "--model", model, "--spec", spec, "--start", start, "--out", tmp_path / "o.toml",
+        "--starts", "1", "--max-iter", "1", "--jobs", "1", says=says)

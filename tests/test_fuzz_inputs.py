@@ -191,3 +191,107 @@ def test_fuzz_logs(tmp_path, capsys, n, scale, jitter, units, cut, constant):
         p.write_bytes(data[: int(len(data) * cut)])
     _no_escape(capsys, ["ident", p, "--method", "pi-moesp", "--input", "u", "--output", "y", "--order", "2",
                         "--horizon", "5", "--out", tmp_path / "m.json"], ok=(0, 2))
+
+
+# -- issue 26: the fault classes, property by property -------------------------------------------------------
+def _numeric_fields(doc, prefix=()):
+    """(dotted field, container, key) of every number (or list of numbers) in a parsed vehicle file."""
+    out = []
+    for k, v in doc.items():
+        if isinstance(v, dict) and k not in ("sources", "published"):
+            out += _numeric_fields(v, prefix + (k,))
+        elif (isinstance(v, (int, float)) and not isinstance(v, bool)) or (
+                isinstance(v, list) and v and all(isinstance(x, (int, float)) for x in v)):
+            out.append((".".join(prefix + (k,)), doc, k))
+    return out
+
+
+extreme = st.one_of(st.sampled_from([1e300, -1e300, 1e-300, 5e-324, 1e7, 1e-10]),
+                    st.integers(10**18, 10**30), st.just(10**400), st.just(-(10**4000)))
+
+
+@FUZZ
+@given(data=st.data())
+def test_fuzz_extreme_vehicle_numbers_name_their_field(tmp_path, capsys, data):
+    """Huge, tiny and over-long numbers in any field of a vehicle file never reach MuJoCo or overflow: the run
+    works or exits 2 naming the file (and the field, unless MuJoCo itself refuses the built model)."""
+    doc = json.loads(json.dumps(VEHICLE))
+    fields = _numeric_fields(doc)
+    name, container, key = data.draw(st.sampled_from(fields))
+    value = data.draw(extreme)
+    container[key] = [value] * len(container[key]) if isinstance(container[key], list) else value
+    p = tmp_path / "vehicle.toml"
+    p.write_text(to_toml(doc))
+    rc = main([str(a) for a in ["run", "rest", "--scene", "pitch-rig", "--vehicle", p, "--duration", "0.04",
+                                "--out", tmp_path / "r"]])
+    out, err = capsys.readouterr()
+    assert rc in (0, 1, 2) and "Traceback" not in out + err, (rc, err)
+    if rc == 2:
+        assert str(p) in err, err
+        if "MuJoCo could not compile" not in err and "field 'duration'" not in err:
+            assert f"'{name}'" in err or "'airframe.mass_kg'" in err, (name, err)
+
+
+@FUZZ
+@given(name=st.text(max_size=80))
+def test_fuzz_names_from_files_never_leave_their_folder(name):
+    """Whatever the text, a name check_name accepts is one path component inside the folder it is put in."""
+    from rotorlab.config import check_name
+    from rotorlab.errors import ConfigError
+
+    try:
+        ok = check_name(name, "v.toml", "vehicle.name")
+    except ConfigError as exc:
+        assert "v.toml" in str(exc) and "'vehicle.name'" in str(exc)
+        return
+    p = Path("runs") / f"rest-{ok}-seed0"
+    assert p.parent == Path("runs") and ".." not in p.parts and len(p.parts) == 2 and "\x00" not in ok
+
+
+json_values = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.floats(), st.integers(-(10**30), 10**30), st.text(max_size=4)),
+    lambda children: st.one_of(st.lists(children, max_size=4), st.dictionaries(st.text(max_size=4), children,
+                                                                                max_size=3)), max_leaves=12)
+
+
+@FUZZ
+@given(doc=st.fixed_dictionaries({}, optional={"num": json_values, "den": json_values, "dt": json_values,
+                                               "delay_s": json_values, "format": json_values, "A": json_values}),
+       depth=st.sampled_from([0, 0, 40, 5000]), digits=st.sampled_from([0, 0, 400, 5000]))
+def test_fuzz_model_json(tmp_path, doc, depth, digits):
+    """Any model JSON (nested, over-long numbers, wrong types): load_model returns a model or raises a
+    ConfigError naming the file, nothing else."""
+    from rotorlab.errors import ConfigError
+    from rotorlab.ident.modelio import load_model
+
+    text = json.dumps(doc)
+    if depth:
+        text = text[:-1] + (", " if doc else "") + '"num": ' + "[" * depth + "]" * depth + "}"
+    if digits:
+        text = text[:-1] + (", " if text != "{}" else "") + '"dt": ' + "7" * digits + "}"
+    p = tmp_path / "m.json"
+    p.write_text(text)
+    try:
+        load_model(p)
+    except ConfigError as exc:
+        assert str(p) in str(exc) and len(str(exc)) < 2000
+
+
+@FUZZ
+@given(spelling=st.sampled_from(["same", "dot", "updown", "symlink", "hardlink", "abs"]))
+def test_fuzz_any_spelling_of_an_input_is_refused_as_output(tmp_path, spelling):
+    from rotorlab import atomic
+    from rotorlab.errors import ConfigError
+
+    (tmp_path / "d").mkdir(exist_ok=True)
+    src = tmp_path / "d" / "in.json"
+    src.write_text("{}")
+    out = {"same": src, "dot": tmp_path / "d" / "." / "in.json", "updown": tmp_path / "d" / ".." / "d" / "in.json",
+           "abs": src.resolve(), "symlink": tmp_path / "link.json", "hardlink": tmp_path / "hard.json"}[spelling]
+    if spelling == "symlink" and not out.is_symlink():
+        out.symlink_to(src)
+    if spelling == "hardlink" and not out.exists():
+        os.link(src, out)
+    with pytest.raises(ConfigError, match="the output is the input file"):
+        atomic.check_output(out, [src])
+    assert src.read_text() == "{}"

@@ -95,6 +95,11 @@ def plant_model(num, den, delay_s: float = 0.0, name: str = "model", dt: float =
     return PlantModel(ct.tf(num, den, dt) if dt else ct.tf(num, den), float(delay_s), name)
 
 
+#: most samples of input delay in a discrete tuning model: every one is a state of each loop the tuner analyses,
+#: whose cost is cubic in the states (2 s at 50 Hz, the model files' cap, is 100)
+MAX_DELAY_SAMPLES = 200
+
+
 def cascade_plant(model: PlantModel, dt: float) -> ct.StateSpace:
     """``u -> [q; theta]`` with the delay, discrete at ``dt`` (ZOH + exact z^-k) or continuous (Pade) if dt == 0.
 
@@ -133,6 +138,10 @@ def cascade_plant(model: PlantModel, dt: float) -> ct.StateSpace:
     Ca = np.block([[C, np.zeros((1, 1))], [np.zeros((1, n)), np.ones((1, 1))]])
     Ga = ct.ss(Aa, Ba, Ca, np.zeros((2, 1)))
     if dt:
+        if model.delay_s / dt > MAX_DELAY_SAMPLES:  # each sample is a state of every loop analysed
+            raise ValueError(f"model '{model.name}': its delay of {model.delay_s:g} s is {model.delay_s / dt:.4g} "
+                             f"samples of the spec's cascade.dt = {dt:g} s; expected at most {MAX_DELAY_SAMPLES} "
+                             "(a larger cascade.dt or a shorter delay)")
         Ga = lti.c2d_zoh(Ga, dt)
     return lti.with_io_delay(Ga, model.delay_s)
 

@@ -44,6 +44,11 @@ class Spec:
     goals: list
 
 
+#: shortest controller cycle of a spec, s: flight software runs at kHz rates at most (a 1e-300 s cycle reached
+#: numpy as "Maximum allowed dimension exceeded")
+MIN_DT_S = 1e-4
+
+
 def builtin_specs() -> dict:
     return {p.stem: p for p in sorted(SPEC_DIR.glob("*.toml"))}
 
@@ -76,9 +81,15 @@ def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
     top.table("meta", required=False, free=True)
     c = top.table("cascade")
     dt = c.num("dt", lo=0.0, hi=10.0)
+    if 0 < dt < MIN_DT_S:
+        raise c.error("dt", "the controller cycle time", expected=f"0 (continuous design) or at least {MIN_DT_S:g} s",
+                      got=dt)
     axis = c.str("axis", "pitch", choices=("pitch", "roll"))
     two_dof = c.bool("two_dof", False)
     tune = c.strlist("tune", choices=cas.PARAM_NAMES)
+    if not tune:  # nothing to tune reached the optimiser as a numpy reshape error
+        raise c.error("tune", "nothing to tune", expected=f"at least one parameter of {list(cas.PARAM_NAMES)}",
+                      got=tune)
     for t in tune:
         if not two_dof and t.split(".")[1] in ("b", "c"):
             raise c.error("tune", "set-point weights are tuned only with two_dof = true", got=t)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import hashlib
+import re
 from pathlib import Path
 
 from rotorlab.errors import ConfigError, UnknownNameError
@@ -50,16 +51,58 @@ def load_vehicle(name_or_path, physics_dt_s: float | None = None) -> VehicleSpec
     return load_vehicle_file(vehicle_path(name_or_path), physics_dt_s)
 
 
-def list_gains(vehicle: str) -> list[str]:
-    return sorted(p.stem for p in (vehicle_path(vehicle).parent / "gains").glob("*.toml"))
+def gains_dir(vehicle) -> Path:
+    """The folder of a vehicle's gain sets: ``gains/`` beside its vehicle file.
+
+    ``vehicle`` is a shipped name, a vehicle TOML path or folder, or a :class:`VehicleSpec` (its file). So a
+    vehicle of one's own (``my-quad/vehicle.toml`` with ``my-quad/gains/*.toml``) has its gain sets exactly as a
+    shipped one has; its name is never looked up among the shipped vehicles. One exception: a vehicle file with
+    no ``gains/`` folder beside it whose ``[vehicle] name`` is a shipped vehicle is a modified copy of that
+    vehicle (run.json records it as not the shipped file) and uses the shipped vehicle's gain sets.
+    """
+    if not isinstance(vehicle, VehicleSpec):
+        vehicle = load_vehicle(vehicle)  # its [vehicle] name decides whether it is a modified shipped vehicle
+    path, name = Path(vehicle.path), vehicle.name
+    if not path.is_file():  # a spec built in memory: only a shipped name has gain sets
+        path = VEHICLES_DIR / name / "vehicle.toml"
+    own = path.parent / "gains"
+    if own.is_dir() or not (VEHICLES_DIR / name / "gains").is_dir():
+        return own
+    return VEHICLES_DIR / name / "gains"
 
 
-def gains_path(vehicle: str, name: str) -> Path:
-    p = vehicle_path(vehicle).parent / "gains" / f"{name}.toml"
-    if not p.exists():
-        raise UnknownNameError(f"gain set of {vehicle}", name, list_gains(vehicle))
+def _label(vehicle) -> str:
+    return vehicle.name if isinstance(vehicle, VehicleSpec) else str(vehicle)
+
+
+def list_gains(vehicle) -> list[str]:
+    """Names of the gain sets of ``vehicle`` (see :func:`gains_dir`)."""
+    return sorted(p.stem for p in gains_dir(vehicle).glob("*.toml"))
+
+
+def gains_path(vehicle, name: str) -> Path:
+    """The file of gain set ``name`` of ``vehicle`` (see :func:`gains_dir`).
+
+    Raises
+    ------
+    rotorlab.errors.UnknownNameError
+        No such set (listing the valid ones); ``name`` is never a path (``../x`` is refused the same way).
+    """
+    folder = gains_dir(vehicle)
+    p = folder / f"{name}.toml"
+    if not _SET_NAME.fullmatch(str(name)) or ".." in str(name) or not p.is_file():
+        valid = list_gains(vehicle)
+        if not valid:
+            v = vehicle if isinstance(vehicle, VehicleSpec) else load_vehicle(vehicle)
+            raise ConfigError(f"vehicle '{v.name}' ({v.path}) has no gain sets: no {folder}/*.toml",
+                              field="gains", expected=f"--gains FILE.toml, or {folder / (str(name) + '.toml')}",
+                              got=str(name))
+        raise UnknownNameError(f"gain set of {_label(vehicle)}", str(name), valid)
     return p
 
 
+_SET_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,63}")
+
+
 __all__ = ["G0", "RHO_AIR", "RigSpec", "RotorSpec", "VehicleSpec", "DEFAULT_VEHICLE", "VEHICLES_DIR", "list_vehicles",
-           "load_vehicle", "parse_vehicle", "vehicle_path", "vehicle_provenance", "list_gains", "gains_path"]
+           "load_vehicle", "parse_vehicle", "vehicle_path", "vehicle_provenance", "list_gains", "gains_path", "gains_dir"]

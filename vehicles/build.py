@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from .rotor_theory import hover
-from .spec import VehicleSpec, check_delay_steps
+from .spec import VehicleSpec, check_delay_steps, check_rate_steps
 
 ROTOR_ACTUATORS = ("thrust", "inflow", "hx", "hy")
 
@@ -50,6 +50,7 @@ def spinup_torque_per_N(v: VehicleSpec, i: int) -> float:
 
 def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
     """Return the vehicle as an ``MjSpec`` whose root body is ``airframe`` (to be attached by a scene)."""
+    check_rate_steps(v.control_rate_hz, physics_dt_s, v.path)
     s = mujoco.MjSpec()
     s.modelname = v.name
     s.compiler.degree = False

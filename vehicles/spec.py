@@ -312,6 +312,9 @@ INERTIA_MIN_KGM2 = 1e-9
 # servo/motor lags and transport delays of flying multirotors are tens of ms; a second is already no aircraft,
 # and MuJoCo's delay buffer grows with delay / physics step
 MAX_LAG_DELAY_S = 1.0
+#: magnitude window of every non-zero number of a vehicle file (SI units): the shipped vehicles span 7e-5
+#: (a rotor's inertia, kg m^2) to 701 (a speed map, rad/s); 1e300 or 1e-300 reached MuJoCo or overflowed
+MAGNITUDE_RANGE = (1e-9, 1e6)
 
 
 def _per_rotor(r: Table, key: str, n: int, lo_open: bool, hi: float | None = None) -> tuple:
@@ -347,6 +350,32 @@ def check_delay_steps(v: VehicleSpec, physics_dt_s: float) -> None:
                               expected=f"a multiple of the physics step {physics_dt_s} s", got=d)
 
 
+def check_rate_steps(rate_hz: float, physics_dt_s: float, src) -> None:
+    """The flight-software period ``1 / rate_hz`` must be a whole number (>= 1) of physics steps: the simulator
+    steps whole physics steps per tick (``rate_hz = 333`` reached the simulator as a traceback)."""
+    k = 1.0 / (rate_hz * physics_dt_s)
+    if abs(k - round(k)) > 1e-6 or round(k) < 1:
+        raise ConfigError("the simulator steps whole physics steps per flight-software tick", file=src,
+                          field="flight_software.rate_hz",
+                          expected=f"a rate whose period is a multiple of the physics step {physics_dt_s} s "
+                                   f"(e.g. {1 / (max(1, round(k)) * physics_dt_s):g} Hz)", got=rate_hz)
+
+
+def _check_hover(spec: VehicleSpec, a: Table, r: Table) -> None:
+    """Variable pitch: the collective that carries the weight must lie within the command range (0, 100] %;
+    checked here, on the file's fields, not later on the derived hover collective."""
+    if spec.kind != "variable-pitch":
+        return
+    col = spec.hover_collective_pct
+    if not 0 < col <= 100:
+        raise a.error("mass_kg", "the rotors cannot carry this mass within the collective range: hover needs "
+                      f"mass_kg * 9.81 / {spec.n_rotors} / rotor.thrust_slope_N_per_rad / rotor.blade_pitch_per_pct_rad "
+                      f"= {col:.4g} % of collective",
+                      expected=f"a mass of at most {spec.mass_kg * 100 / col:.4g} kg with these rotor.* values "
+                               "(or a larger rotor.thrust_slope_N_per_rad or rotor.blade_pitch_per_pct_rad)",
+                      got=spec.mass_kg)
+
+
 def _check_inertia(a: Table, inertia: tuple) -> None:
     ixx, iyy, izz = inertia
     # principal moments of any rigid body obey the triangle inequality (I_a + I_b >= I_c)
@@ -357,7 +386,7 @@ def _check_inertia(a: Table, inertia: tuple) -> None:
 
 
 def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> VehicleSpec:
-    rd = Table(src, data)
+    rd = Table(src, data, magnitude=MAGNITUDE_RANGE)
     v = rd.table("vehicle")
     kind = v.str("kind", choices=("variable-pitch", "variable-rpm"))
     a = rd.table("airframe")
@@ -429,17 +458,12 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
     fsw = rd.table("flight_software", required=False)
     rate_hz = fsw.num("rate_hz", 50.0, lo=0.0, lo_open=True) if fsw is not None else 50.0
     if physics_dt_s:
-        k = 1.0 / (rate_hz * physics_dt_s)
-        if abs(k - round(k)) > 1e-6:
-            raise ConfigError("the simulator steps whole physics steps per flight-software tick", file=src,
-                              field="flight_software.rate_hz",
-                              expected=f"a rate whose period is a multiple of the physics step {physics_dt_s} s",
-                              got=rate_hz)
+        check_rate_steps(rate_hz, physics_dt_s, src)
     srcs = rd.table("sources", required=False, free=True)
     inertia = a.vec("inertia_kgm2", 3, lo=INERTIA_MIN_KGM2)
     _check_inertia(a, inertia)
     spec = VehicleSpec(
-        name=v.str("name"), description=v.str("description", ""), kind=kind, path=Path(src),
+        name=v.name("name"), description=v.str("description", ""), kind=kind, path=Path(src),
         mass_kg=a.num("mass_kg", lo=MASS_RANGE_KG[0], hi=MASS_RANGE_KG[1]), inertia_kgm2=inertia,
         arm_m=a.num("arm_m", lo=0.0, lo_open=True), rotor_height_m=a.num("rotor_height_m", 0.0),
         body_size_m=a.vec("body_size_m", 3, lo=0.0, lo_open=True), cp_offset_m=a.vec("cp_offset_m", 3, (0, 0, 0)),
@@ -452,6 +476,7 @@ def parse_vehicle(data: dict, src, physics_dt_s: float | None = None) -> Vehicle
     rd.check_unknown()
     if kind == "variable-rpm":
         _check_rpm_thrust(spec, r)
+    _check_hover(spec, a, r)
     if physics_dt_s:
         check_delay_steps(spec, physics_dt_s)
     return spec

@@ -31,12 +31,14 @@ def add_parser(sub):
 
 
 def run(args) -> int:
+    from rotorlab.atomic import check_output
     from rotorlab.ident.modelio import describe_model, load_model
     from rotorlab.lti import is_discrete
     from rotorlab.plotting import plot_bode
 
     models = []
     try:
+        check_output(args.out, args.models)
         for path in args.models:
             sys, delay_s, meta = load_model(path)
             if sys.ninputs != 1 or sys.noutputs != 1:

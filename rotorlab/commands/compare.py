@@ -51,7 +51,11 @@ def run(args) -> int:
     if len(args.runs) < 2:
         raise CLIError("compare needs at least two run folders")
     try:
+        from rotorlab.atomic import check_output
+
         runs = [read_run(p) for p in args.runs]
+        check_output(args.out, [f for p in map(Path, args.runs) for f in
+                                ((p / "log.parquet", p / "run.json") if p.is_dir() else (p, p.parent / "run.json"))])
         scen = {r["info"].get("scenario") for r in runs}
         if len(scen) > 1:
             raise CLIError(f"the runs are of different scenarios ({', '.join(sorted(map(str, scen)))}); compare runs "

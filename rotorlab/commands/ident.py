@@ -15,8 +15,6 @@ with one model file per axis and report.html written into the --out folder (docs
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from rotorlab.cli import CLIError, describe, positive_int
@@ -110,7 +108,7 @@ def _identify(args, u, y, dt, delay):
 
 
 def run(args) -> int:
-    from rotorlab.atomic import check_writable_dir
+    from rotorlab.atomic import check_output
     from rotorlab.commands.ident_flightlog import is_flight_log, run_flight_log
     from rotorlab.ident.logs import check_identifiable, load_log
     from rotorlab.ident.methods import get_method
@@ -122,7 +120,7 @@ def run(args) -> int:
     missing = [f"--{k}" for k in ("method", "input", "output") if getattr(args, k) is None]
     if missing:
         raise CLIError(f"the following arguments are required for a Parquet or CSV log: {', '.join(missing)}")
-    check_writable_dir(Path(args.out).parent, "folder of --out")
+    check_output(args.out, [args.log, args.cv_log])  # never over an input log, before any work
 
     try:
         get_method(args.method)

@@ -46,7 +46,7 @@ def _windows(items):
 
 
 def run_flight_log(args) -> int:
-    from rotorlab.atomic import check_writable_dir
+    from rotorlab.atomic import check_output
     from rotorlab.ident.flightlogs.names import AXES
     from rotorlab.ident.flightlogs.run import identify_flight_log
 
@@ -60,11 +60,8 @@ def run_flight_log(args) -> int:
         raise CLIError(f"--holdout must be in (0, 1), got {args.holdout}")
     if args.rate_hz is not None and not args.rate_hz > 0:
         raise CLIError(f"--rate-hz must be > 0, got {args.rate_hz}")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise CLIError(f"--out {out}: a flight log writes a folder (one model file per axis and the report); "
-                       "expected a folder, got a file")
-    check_writable_dir(out if out.exists() else out.parent, "folder of --out")
+    # a flight log writes a folder (one model file per axis and the report), never over the log itself
+    out = check_output(args.out, [args.log], what="folder")
     res = identify_flight_log(args.log, out, axes, windows=_windows(args.window), holdout=args.holdout,
                               rate_hz=args.rate_hz, allow_truncated=args.allow_truncated)
     log = res.log

@@ -12,11 +12,9 @@ statistics of the scenario's key metrics.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from rotorlab.cli import CLIError, describe, positive_int, seed_int
+from rotorlab.cli import CLIError, bounded_int, describe, process_count, seed_int
 from rotorlab.errors import RotorlabError
 
 # Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
@@ -29,6 +27,10 @@ WIND_OPTION = {"gust": "mean_wind_mps", "hover": "wind_mps", "prbs-flight": "win
 #: units of the batch tables' sample columns besides the draw's (rotorlab.sim.randomize.DRAW_UNITS; a metric
 #: column carries its unit in its name, e.g. rise_time_s)
 SAMPLE_UNITS = {"sample": "1", "run_seed": "1"}
+#: most runs of one Monte Carlo (each a simulation of seconds; every row is kept in memory for the summary)
+MAX_RUNS = 100_000
+#: largest mean wind drawn, m/s: a storm, beyond any multirotor's flight envelope
+MAX_WIND_MPS = 50.0
 
 
 
@@ -38,15 +40,18 @@ def add_parser(sub):
     p.add_argument("scenario", help="scenario name (see rotorlab list)")
     p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name or vehicle TOML path")
     p.add_argument("--gains", default=None, help="gain set name or gains TOML (default: the vehicle's standard set)")
-    p.add_argument("--n", type=positive_int, default=100, help="number of runs")
+    p.add_argument("--n", type=bounded_int(MAX_RUNS), default=100, help=f"number of runs (at most {MAX_RUNS})")
     p.add_argument("--vary", default="mass,inertia,delay",
                    help="comma list of NAME or NAME=SPREAD, NAME from " +
                         ", ".join(f"{k} (spread {v:g} {VARY_UNITS[k]})" for k, v in VARY.items()))
     p.add_argument("--duration", type=float, default=None, help="run duration, s (default: the scenario's)")
     p.add_argument("--seed", type=seed_int, default=0, help="master seed of the parameter draws and the runs")
-    p.add_argument("--batch", type=positive_int, default=50, help="runs per Parquet batch")
-    p.add_argument("--executor", default="local", help="local (processes), serial, dask or dask://HOST:PORT")
-    p.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: the executor's choice)")
+    p.add_argument("--batch", type=bounded_int(MAX_RUNS), default=50, help="runs per Parquet batch")
+    p.add_argument("--executor", default="local", help="local (processes), serial, dask or dask://HOST:PORT (an "
+                   "existing scheduler: connect only to one you trust, it sends pickled objects that run code "
+                   "here; docs/security.md)")
+    p.add_argument("--workers", type=process_count, default=None,
+                   help="worker processes, at most twice the CPUs (default: the executor's choice)")
     p.add_argument("--out", default=None, help="output folder (default runs/montecarlo-SCENARIO-VEHICLE-seedN)")
     return p
 
@@ -72,8 +77,23 @@ def parse_vary(text: str) -> dict:
         if not (spread >= 0 and np.isfinite(spread)) or (name in ("mass", "inertia") and spread >= 1):
             raise CLIError(f"--vary {name}: expected a spread >= 0" + (" and < 1 (a relative scale)"
                            if name in ("mass", "inertia") else "") + f", got {spread:g}")
+        if name == "wind" and spread > MAX_WIND_MPS:
+            raise CLIError(f"--vary wind: expected a spread of at most {MAX_WIND_MPS:g} m/s, got {spread:g}")
         out[name] = spread
     return out
+
+
+def _check_delay_spread(vehicle, vary: dict) -> None:
+    """The drawn delays stay within the vehicle file's documented range of ``rotor.delay_s``
+    (:data:`rotorlab.vehicles.spec.MAX_LAG_DELAY_S`): --vary delay=5 drew 3.4-4.0 s delays the file caps at 1 s."""
+    from rotorlab.vehicles.spec import MAX_LAG_DELAY_S
+
+    if "delay" in vary:
+        room = MAX_LAG_DELAY_S - max(vehicle.rotor.delay_s)
+        if vary["delay"] > room + 1e-12:
+            raise CLIError(f"--vary delay: expected a spread of at most {room:g} s (the vehicle's delay "
+                           f"{max(vehicle.rotor.delay_s):g} s plus the spread must stay within rotor.delay_s's "
+                           f"range [0, {MAX_LAG_DELAY_S:g}] s), got {vary['delay']:g}")
 
 
 def draw(vehicle, vary: dict, seed_seq):
@@ -115,7 +135,7 @@ def run(args) -> int:
     from rotorlab.executor import get_executor
     from rotorlab.logformat import write_parquet
     from rotorlab.sim import randomize, scenarios
-    from rotorlab.sim.runner import resolve_gains
+    from rotorlab.sim.runner import check_duration, resolve_gains
     from rotorlab.vehicles import load_vehicle
 
     vary = parse_vary(args.vary)
@@ -124,11 +144,15 @@ def run(args) -> int:
     try:
         scenarios.get(args.scenario)
         v = load_vehicle(args.vehicle)
+        _check_delay_spread(v, vary)
+        if args.duration is not None:  # before any run: every sample would fail alike in its worker
+            check_duration(args.duration, v.control_dt_s)
         gains = resolve_gains(v, args.gains)
+        out = atomic.check_output(args.out or f"runs/montecarlo-{args.scenario}-{v.name}-seed{args.seed}",
+                                  flag="--out", what="folder")
         ex = get_executor(args.executor, args.workers)
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
-    out = Path(args.out or f"runs/montecarlo-{args.scenario}-{v.name}-seed{args.seed}")
     children = np.random.SeedSequence(args.seed).spawn(args.n)
     rows = []
     with ex:

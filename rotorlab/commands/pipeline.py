@@ -11,8 +11,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rotorlab.cli import CLIError, describe, positive_int, seed_int
+from rotorlab.cli import CLIError, bounded_int, describe, process_count, seed_int
 from rotorlab.errors import RotorlabError
+
+#: most bootstrap replications or Monte Carlo samples (each sample is kept for the statistics)
+MAX_SAMPLES = 100_000
 
 # Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
 # so what a command needs beyond the CLI loads only when that command runs.
@@ -27,12 +30,16 @@ def add_parser(sub):
     p.add_argument("--quick", action="store_true", help="half-length campaign, published best settings plus one alternative per grid, 50 bootstrap "
                                                   "replications, 100 Monte Carlo samples, one tuning start, 24 s hover")
     p.add_argument("--tiny", action="store_true", help=argparse.SUPPRESS)  # tests: seconds per stage
-    p.add_argument("--executor", default="local", help="local (process pool), serial, dask (local "
-                                                        "cluster) or dask://HOST:PORT (existing scheduler)")
-    p.add_argument("--workers", type=positive_int, default=None, help="worker processes (default: all cores)")
+    p.add_argument("--executor", default="local", help="local (process pool), serial, dask (local cluster) or "
+                   "dask://HOST:PORT (an existing scheduler: connect only to one you trust, it sends pickled "
+                   "objects that run code here; docs/security.md)")
+    p.add_argument("--workers", type=process_count, default=None,
+                   help="worker processes, at most twice the CPUs (default: all cores)")
     p.add_argument("--seed", type=seed_int, default=0, help="master seed of every experiment, bootstrap and Monte Carlo")
-    p.add_argument("--n-boot", type=positive_int, default=None, help="bootstrap replications (default 1000, quick 50)")
-    p.add_argument("--n-mc", type=positive_int, default=None, help="Monte Carlo samples per gain set (default 1000, quick 100)")
+    p.add_argument("--n-boot", type=bounded_int(MAX_SAMPLES), default=None,
+                   help=f"bootstrap replications (default 1000, quick 50; at most {MAX_SAMPLES})")
+    p.add_argument("--n-mc", type=bounded_int(MAX_SAMPLES), default=None,
+                   help=f"Monte Carlo samples per gain set (default 1000, quick 100; at most {MAX_SAMPLES})")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     return p
 

@@ -29,9 +29,13 @@ def run(args) -> int:
     from rotorlab.plotting import plot_runs, read_run
 
     try:
+        from rotorlab.atomic import check_output
+
         r = read_run(args.run)
         src = Path(args.run)
-        out = Path(args.out) if args.out else (src if src.is_dir() else src.parent) / "plot.png"
+        folder = src if src.is_dir() else src.parent
+        out = Path(args.out) if args.out else folder / "plot.png"
+        check_output(out, [folder / "log.parquet" if src.is_dir() else src, folder / "run.json"])
         signals = [s.strip() for s in args.signals.split(",") if s.strip()] if args.signals else None
         path = plot_runs([r], out, signals)
     except RotorlabError as exc:

@@ -49,15 +49,20 @@ def parse_options(items) -> dict:
     """``KEY=VALUE`` strings -> dict; values parsed as TOML (``2.5``, ``true``, ``[1, 2]``), else kept as text."""
     import tomllib
 
+    from rotorlab.config import MAX_DEPTH, check_depth
+
     out = {}
     for it in items:
         if "=" not in it:
             raise CLIError(f"--option expects KEY=VALUE, got '{it}'")
         k, v = it.split("=", 1)
         try:
-            out[k.strip()] = tomllib.loads(f"v = {v}")["v"]
+            out[k.strip()] = check_depth(tomllib.loads(f"v = {v}")["v"], "--option")
         except tomllib.TOMLDecodeError:
             out[k.strip()] = v
+        except (RecursionError, ValueError):  # nested too deeply; an integer beyond 4300 digits
+            raise CLIError(f"--option {k.strip()}: expected a TOML scalar or a list nested at most {MAX_DEPTH} "
+                           f"deep, got {len(v)} characters that are neither") from None
     return out
 
 
@@ -113,7 +118,8 @@ def run(args) -> int:
         vehicle = load_vehicle(args.vehicle)
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
-    # the vehicle's own name, not its path: `--vehicle ../x/vehicle.toml` must not name the folder "vehicle"
+    # the vehicle's own name (a safe name, rotorlab.config.check_name), not its path: `--vehicle ../x/vehicle.toml`
+    # must not name the folder "vehicle"
     out = Path(args.out or f"runs/{args.scenario}-{vehicle.name}-seed{args.seed}")
     rrd = None
     if args.rerun:
@@ -123,6 +129,15 @@ def run(args) -> int:
             rrd = check_rrd_path(args.rerun)  # before the run: a bad path must not cost a simulation
         except RotorlabError as exc:
             raise CLIError(str(exc)) from None
+    from rotorlab.atomic import check_output
+
+    inputs = [vehicle.path, *(c for c in args.controller if Path(c).suffix in (".json", ".toml"))]
+    if args.gains and Path(args.gains).suffix == ".toml":
+        inputs.append(args.gains)
+    try:
+        check_output(out, inputs, "--out", what="folder")
+    except RotorlabError as exc:
+        raise CLIError(str(exc)) from None
     try:
         controller = None
         if args.controller:

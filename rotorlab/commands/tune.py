@@ -10,8 +10,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rotorlab.cli import CLIError, describe, positive_int, seed_int
-from rotorlab.errors import RotorlabError, UnknownNameError
+from rotorlab.cli import CLIError, bounded_int, describe, process_count, seed_int
+from rotorlab.errors import RotorlabError
+
+#: bounds of the counts (each start runs up to --max-iter optimiser iterations of a few seconds)
+MAX_STARTS = 1000
+MAX_ITER = 10000
 
 # Imports inside the functions: rotorlab.cli imports every command module to build its parser (for --help too),
 # so what a command needs beyond the CLI loads only when that command runs.
@@ -27,11 +31,14 @@ def add_parser(sub):
                    help="start gains: a gains TOML file or a gain-set name of the spec's vehicle")
     p.add_argument("--out", required=True, help="gains TOML to write; when a hard goal fails nothing is written "
                                                 "there and the gains go to OUT.failed.toml, marked as failing")
-    p.add_argument("--starts", type=positive_int, default=4,
-                   help="number of starts: the start gains, then random starts; the best is kept")
+    p.add_argument("--starts", type=bounded_int(MAX_STARTS), default=4,
+                   help=f"number of starts: the start gains, then random starts; the best is kept (at most "
+                        f"{MAX_STARTS}; default: %(default)s)")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the random starts")
-    p.add_argument("--jobs", type=positive_int, default=2, help="processes for the starts")
-    p.add_argument("--max-iter", type=positive_int, default=40, help="outer iterations per start")
+    p.add_argument("--jobs", type=process_count, default=2,
+                   help="processes for the starts (at most twice the CPUs of this machine; default: %(default)s)")
+    p.add_argument("--max-iter", type=bounded_int(MAX_ITER), default=40,
+                   help=f"outer iterations per start (at most {MAX_ITER}; default: %(default)s)")
     return p
 
 
@@ -42,18 +49,20 @@ def _start_gains(start: str, spec_path):
     if p.suffix == ".toml" or p.exists():
         return load_gains(p)
 
-    from rotorlab.config import read_toml
-    from rotorlab.vehicles import VEHICLES_DIR
+    from rotorlab.config import check_name, read_toml
+    from rotorlab.vehicles import gains_path, list_vehicles
 
     meta = read_toml(spec_path, "spec").get("meta", {})
-    vehicle = meta.get("vehicle")
+    vehicle = meta.get("vehicle") if isinstance(meta, dict) else None
     if not vehicle or not isinstance(vehicle, str):
         raise CLIError(f"--start '{start}' is not a file and the spec names no [meta] vehicle to look it up in")
-    gdir = VEHICLES_DIR / vehicle / "gains"
-    valid = sorted(q.stem for q in gdir.glob("*.toml"))
-    if start not in valid:
-        raise CLIError(str(UnknownNameError(f"gain set of {vehicle}", start, valid)))
-    return load_gains(gdir / f"{start}.toml")
+    # a name from a file: never a path (a "../" in it read a gains file from elsewhere)
+    check_name(vehicle, spec_path, "meta.vehicle")
+    if vehicle not in list_vehicles():
+        raise CLIError(f"{spec_path}: field 'meta.vehicle': --start '{start}' is a gain-set name, looked up among "
+                       f"the shipped vehicles' sets; expected one of {list_vehicles()}, got {vehicle!r} (give "
+                       "--start FILE.toml for another vehicle)")
+    return load_gains(gains_path(vehicle, start))
 
 
 def run(args) -> int:
@@ -65,7 +74,7 @@ def run(args) -> int:
     from rotorlab.tune.spec import builtin_specs, load_spec
 
     try:
-        atomic.check_writable_dir(Path(args.out).parent, "folder of --out")  # before minutes of tuning
+        atomic.check_output(args.out, args.model)  # before minutes of tuning
         spec = load_spec(args.spec)
         spec_path = builtin_specs().get(str(args.spec), args.spec)
         models = []
@@ -73,6 +82,10 @@ def run(args) -> int:
             sys_, delay_s, meta = load_model(path)
             models.append(PlantModel(sys_, delay_s, name=Path(path).stem))
         start = _start_gains(args.start, spec_path)
+        # every input is recorded now (models, spec, start gains): neither output may replace one
+        out = Path(args.out)
+        for path in (out, out.with_name(out.stem + ".failed.toml")):
+            atomic.check_output(path)
         res = tune_cascade(spec, models, start, starts=args.starts, seed=args.seed, n_jobs=args.jobs,
                            max_iter=args.max_iter, name=Path(args.out).stem)
     except RotorlabError as exc:

@@ -9,7 +9,6 @@ validation run, all opened together).
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -62,10 +61,11 @@ def find_recordings(path) -> list[Path]:
     if not log_path.is_file():
         raise CLIError(f"{p} has no .rrd recording (looked in {p}, " +
                        ", ".join(str(p / s) for s in PIPELINE_RECORDINGS) + ") and no log.parquet to make one from")
+    from rotorlab.config import read_json_object
     from rotorlab.sim.rerun_log import TableLog, record_run
 
-    info = json.loads(info_path.read_text()) if info_path.is_file() else {}
     try:
+        info = read_json_object(info_path, "run record") if info_path.exists() else {}
         return [record_run(TableLog(log_path), p / RECORDING, info=info)]
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None

@@ -23,6 +23,8 @@ import numpy as np
 import pyarrow as pa
 from tqdm import tqdm
 
+from rotorlab.config import read_json
+from rotorlab.errors import ConfigError
 from rotorlab.gains import GainSet, load_gains
 from rotorlab.ident.model import IdentifiedModel
 from rotorlab.ident.modelio import load_model
@@ -47,8 +49,8 @@ def stage_result(out, stage: str) -> dict:
     if not p.exists():
         raise PipelineError(f"stage '{stage}' has not completed in {out}")
     try:
-        return json.loads(p.read_text(encoding="utf-8"))["result"]
-    except (ValueError, UnicodeDecodeError, KeyError, TypeError) as exc:
+        return read_json(p, "stage record", note=False)["result"]
+    except (ValueError, UnicodeDecodeError, KeyError, TypeError) as exc:  # ConfigError is a ValueError
         raise PipelineError(f"{p}: damaged stage record ({type(exc).__name__}: {exc}); run the pipeline again "
                             "into this folder to recompute the stage") from None
 
@@ -59,9 +61,13 @@ def read_manifest(out) -> dict | None:
     if not p.exists():
         return None
     try:
-        return json.loads(p.read_text())
-    except json.JSONDecodeError as exc:
-        raise PipelineError(f"{p} is not valid JSON ({exc}); delete the run folder or use a new --out") from None
+        man = read_json(p, "manifest", note=False)  # the run's own file, rewritten by the run
+    except ConfigError as exc:
+        raise PipelineError(f"{exc}; delete the run folder or use a new --out") from None
+    if not isinstance(man, dict):
+        raise PipelineError(f"{p}: expected a JSON object, got {type(man).__name__}; delete the run folder or use "
+                            "a new --out")
+    return man
 
 
 def write_log(path: Path, columns: dict, units: dict, meta: dict) -> None:

@@ -22,12 +22,14 @@ import time
 from pathlib import Path
 
 from rotorlab import __version__, atomic
+from rotorlab.config import read_json
+from rotorlab.errors import RotorlabError
 from rotorlab.executor import get_executor
 from rotorlab.pipeline.runfolder import RunFolder, StageContext, read_manifest, stage_dir
 from rotorlab.pipeline.settings import FORMAT_VERSION, PipelineError, PipelineOptions, settings_for
 from rotorlab.pipeline.stages import REGISTRY, STAGES
 from rotorlab.tune.spec import builtin_specs
-from rotorlab.vehicles import load_vehicle, vehicle_path
+from rotorlab.vehicles import gains_dir, gains_path, load_vehicle, vehicle_path
 
 __all__ = ["run_pipeline", "stage_hash", "dir_hash", "run_folder_lock", "LOCK_NAME"]
 
@@ -43,7 +45,7 @@ def _vehicle_fingerprint(vehicle: str) -> dict:
     """Content hashes of the vehicle's configuration: its TOML, gain sets and shipped tuning spec (the tune
     stage's requirements), so that editing any of them re-runs what depends on it."""
     p = vehicle_path(vehicle)
-    files = {p.name: p, **{f"gains/{f.name}": f for f in sorted((p.parent / "gains").glob("*.toml"))}}
+    files = {p.name: p, **{f"gains/{f.name}": f for f in sorted(gains_dir(vehicle).glob("*.toml"))}}
     spec = builtin_specs().get(vehicle)
     if spec is not None:
         files["spec"] = Path(spec)
@@ -60,7 +62,7 @@ def dir_hash(path: Path) -> str:
             try:
                 doc = json.loads(f.read_text(encoding="utf-8"))
                 h.update(json.dumps(doc.get("result"), sort_keys=True).encode())
-            except (ValueError, UnicodeDecodeError, AttributeError):  # a damaged stage.json hashes as its bytes
+            except (ValueError, UnicodeDecodeError, AttributeError, RecursionError):  # damaged: hashed as its bytes
                 h.update(f.read_bytes())
         else:
             h.update(f.read_bytes())
@@ -75,23 +77,72 @@ def stage_hash(stage: str, opts: PipelineOptions, s: dict, fingerprint: dict, up
                  "settings": {k: s[k] for k in REGISTRY[stage].settings}, "upstream": upstream_hashes})
 
 
+#: descriptors of the run-folder locks this process holds: a forked child (a pool worker) closes its copies at
+#: once, so the lock lives exactly as long as the pipeline process and never in a worker that outlives it
+_HELD_LOCKS: set[int] = set()
+
+
+def _close_inherited_locks() -> None:
+    for fd in list(_HELD_LOCKS):
+        with contextlib.suppress(OSError):
+            os.close(fd)
+    _HELD_LOCKS.clear()
+
+
+os.register_at_fork(after_in_child=_close_inherited_locks)
+
+
+def _lock_holders(path: Path) -> list[int]:
+    """Pids of the processes that have ``path`` open (Linux /proc; empty elsewhere or where unreadable)."""
+    pids = []
+    target = str(path.resolve())
+    for proc in Path("/proc").glob("[0-9]*"):
+        with contextlib.suppress(OSError):
+            if any(os.readlink(fd) == target for fd in (proc / "fd").iterdir()):
+                pids.append(int(proc.name))
+    return sorted(p for p in pids if p != os.getpid())
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 @contextlib.contextmanager
 def run_folder_lock(out: Path):
     """Hold the run folder ``out`` for one pipeline: a second pipeline into the same folder is refused.
 
     An advisory ``flock`` on ``OUT/.rotorlab.lock``: the kernel releases it when the holder exits in any way
     (Ctrl-C, SIGKILL, a crash), so a lock is never stale and needs no clean-up; the file itself may stay.
+    Only the pipeline process holds it: the descriptor is close-on-exec and every forked worker closes its
+    copy (a worker that outlived a killed pipeline held the lock and blocked the re-run). A lock still held
+    after its recorded pipeline died (workers of an older rotorlab) is reported as such, with their pids.
     It records the holder's pid, host and start time for the refusal message. Without it two runs shared
     ``stages/.<stage>.partial`` and committed a stage holding only the other's stage.json, for good.
     """
     out.mkdir(parents=True, exist_ok=True)
     path = out / LOCK_NAME
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+    _HELD_LOCKS.add(fd)
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             holder = os.pread(fd, 512, 0).decode("utf-8", "replace").strip() or "another process"
+            words = holder.split()
+            pid = int(words[1]) if len(words) > 1 and words[0] == "pid" and words[1].isdigit() else None
+            same_host = socket.gethostname() in holder
+            if pid is not None and same_host and not _alive(pid):
+                left = _lock_holders(path)
+                raise PipelineError(
+                    f"{out} is locked by processes left over from a pipeline that is no longer running ({holder}): "
+                    f"pid(s) {', '.join(map(str, left)) or 'unknown'} still hold {path}; stop them "
+                    f"(kill {' '.join(map(str, left)) or 'PID'}) and run the same command again to resume") from None
             raise PipelineError(f"{out} is in use by another rotorlab pipeline ({holder}); wait for it to finish "
                                 "or choose another --out folder") from None
         os.ftruncate(fd, 0)
@@ -99,13 +150,21 @@ def run_folder_lock(out: Path):
                       f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n".encode(), 0)
         yield path
     finally:
+        _HELD_LOCKS.discard(fd)
         os.close(fd)  # releases the flock
 
 
-def _open_run_folder(out: Path, vehicle: str) -> dict:
+#: the options of a run that choose its numbers: a folder holding a run made with others is not replaced
+_RUN_CHOICES = (("seed", "--seed"), ("level", "--quick/--tiny"), ("settings", "--n-boot/--n-mc"))
+
+
+def _open_run_folder(out: Path, vehicle: str, seed: int | None = None, level: str | None = None,
+                     settings: dict | None = None) -> dict:
     """The manifest of ``out`` (a fresh one for a new or empty folder), refusing a folder that is not a
-    compatible run of ``vehicle``. Called before the lock is taken (a foreign folder is refused before anything
-    is written into it) and again under the lock, where the manifest read is the one the run updates."""
+    compatible run of ``vehicle``, or (when given) one whose stages were computed with another seed, level or
+    sizes: re-running into it would replace those results, so another --out is asked for. Called before the
+    lock is taken (a foreign folder is refused before anything is written into it) and again under the lock,
+    where the manifest read is the one the run updates."""
     man = read_manifest(out)
     if man is None:
         if out.exists() and any(p.name != LOCK_NAME for p in out.iterdir()):
@@ -122,6 +181,16 @@ def _open_run_folder(out: Path, vehicle: str) -> dict:
     if man.get("vehicle") != vehicle:
         raise PipelineError(f"{out} holds a pipeline run of vehicle '{man.get('vehicle')}', not '{vehicle}'; "
                             "use another --out folder")
+    asked = {"seed": seed, "level": level, "settings": settings}
+    if man.get("stages"):
+        for key, flag in _RUN_CHOICES:
+            if asked[key] is not None and key in man and man[key] != json.loads(json.dumps(asked[key])):
+                was = man[key] if key != "settings" else {k: v for k, v in man[key].items()
+                                                          if isinstance(man[key], dict) and v != asked[key].get(k)}
+                now = asked[key] if key != "settings" else {k: asked[key][k] for k in was if k in asked[key]}
+                raise PipelineError(
+                    f"{out} holds a pipeline run with {key} {was} ({flag}), not {now}; re-running into it would "
+                    f"replace its results: use another --out folder, or delete {out} to start over")
     man["rotorlab_version"] = __version__
     return man
 
@@ -135,8 +204,8 @@ def _cached_hash(final: Path, h: str, committed: dict | None, log=print) -> str 
     if not done.exists():
         return None
     try:
-        doc = json.loads(done.read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError):
+        doc = read_json(done, "stage record", note=False)
+    except ValueError:  # ConfigError: not JSON, not UTF-8, too deep, not a regular file
         log(f"  {done} is not readable JSON: recomputing the stage")
         return None
     if not isinstance(doc, dict) or doc.get("hash") != h:
@@ -155,19 +224,25 @@ def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
 
     Each stage prints one line: its number, name, ``done``/``cached`` and its time.
     """
-    load_vehicle(opts.vehicle)  # unknown vehicle -> UnknownNameError listing the valid ones, before any work
+    v = load_vehicle(opts.vehicle)  # unknown vehicle -> UnknownNameError listing the valid ones, before any work
+    try:  # tuning and validation start from the vehicle's standard set: a vehicle of one's own needs one too
+        gains_path(v, "standard")
+    except RotorlabError as exc:
+        raise PipelineError(f"the pipeline starts from the vehicle's 'standard' gain set, in gains/standard.toml "
+                            f"beside its file ({gains_dir(v)}): {exc}") from None
     s = settings_for(opts.level, opts.n_boot, opts.n_mc)
     out = Path(opts.out)
     if out.exists() and not out.is_dir():
         raise PipelineError(f"--out {out} is a file; expected a run folder")
-    _open_run_folder(out, opts.vehicle)  # refuse a foreign or incompatible folder before writing anything into it
+    # refuse a foreign or incompatible folder, or one holding another seed's results, before writing into it
+    _open_run_folder(out, opts.vehicle, opts.seed, opts.level, s)
     atomic.check_writable_dir(out, "run folder")  # before any work: a read-only --out must not cost a stage
     with run_folder_lock(out):
         return _run_locked(opts, s, out, stages, log)
 
 
 def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log) -> dict:
-    man = _open_run_folder(out, opts.vehicle)
+    man = _open_run_folder(out, opts.vehicle, opts.seed, opts.level, s)
     man.update(seed=opts.seed, level=opts.level, settings=s)
     out.mkdir(parents=True, exist_ok=True)
     (out / "stages").mkdir(exist_ok=True)

@@ -164,6 +164,7 @@ class FlightSoftware:
             if not isinstance(pl, Plugin):
                 raise ConfigError(field="plugins", expected="objects with reset() and step(t, signals)",
                                   got=type(pl).__name__)
+        self._plugin_signals = set(COMMANDS)  # names a plug-in may set: the commands and its own new signals
         self._ref = {}
         self.set_mode(mode)
         self.reset()
@@ -207,6 +208,16 @@ class FlightSoftware:
         self._sig = {}
 
     # ------------------------------------------------------------------ tick
+    def _claim(self, plugin, name: str, sig: dict) -> None:
+        """Let ``plugin`` log a new signal ``name``; a name the tick already has (a measurement, a set-point, an
+        internal signal) is refused: the plug-in runs after the loops used it, so the value would only replace
+        the true signal in the log."""
+        if name in sig:
+            raise ConfigError(f"plug-in {type(plugin).__name__} returns '{name}', a signal of the flight software",
+                              field="outputs", expected=f"commands ({', '.join(COMMANDS)}) or new signal names",
+                              got=name)
+        self._plugin_signals.add(name)
+
     def _exc(self, name: str, t: float) -> float:
         sig = self.excitation.get(name)
         if sig is None:
@@ -340,9 +351,13 @@ class FlightSoftware:
 
         if plugins and not solo:
             sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"] = u_col, u_lat, u_lon, u_yaw
+            own = self._plugin_signals
             for pl in plugins:
                 out = pl.step(t, sig)
                 if out:
+                    for name in out:
+                        if name not in own:
+                            self._claim(pl, name, sig)
                     sig.update(out)
             u_col, u_lat, u_lon, u_yaw = sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"]
 

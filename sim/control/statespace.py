@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from rotorlab import atomic
-from rotorlab.config import read_toml
+from rotorlab.config import read_json, read_toml
 from rotorlab.errors import ConfigError
 
 FORMAT = "rotorlab-controller/1"
@@ -120,6 +120,12 @@ def _check(spec: ControllerSpec, src) -> None:
     if not p or not m or len(set(spec.outputs)) != m:
         raise ConfigError(file=src, field="inputs/outputs", expected="non-empty lists of signal names, outputs unique",
                           got=(list(spec.inputs), list(spec.outputs)))
+    bad = [x for x in spec.outputs if x not in COMMANDS]
+    if bad:
+        # an output named like a measurement or a set-point would overwrite that signal in the tick and the log
+        # (after the loops used it), never act on the vehicle
+        raise ConfigError("a controller sets flight-software commands only", file=src, field="outputs",
+                          expected=f"names among {list(COMMANDS)}", got=bad[0])
     for k, shape in (("A", (n, n)), ("B", (n, p)), ("C", (m, n)), ("D", (m, p))):
         if getattr(spec, k).shape != shape:
             raise ConfigError(file=src, field=k, expected=f"shape {shape} for {n} states, {p} inputs, {m} outputs",
@@ -204,13 +210,7 @@ def load_controller(path) -> ControllerSpec:
         return parse_controller(read_toml(path, "controller"), path)
     if path.suffix != ".json":
         raise ConfigError(file=path, expected="a controller file ending in .json or .toml", got=path.suffix)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("controller file not found", file=path) from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"not valid JSON: {exc}", file=path) from None
-    return parse_controller(data, path)
+    return parse_controller(read_json(path, "controller"), path)
 
 
 def save_controller(path, spec: ControllerSpec) -> Path:

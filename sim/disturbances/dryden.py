@@ -115,6 +115,10 @@ def exact_noise_discretisation(A, B, dt: float):
     return Ad, 0.5 * (Qd + Qd.T)
 
 
+#: the Dryden spectra model subsonic low-altitude flight; far above, the shaping filters' covariance overflowed
+MAX_AIRSPEED_MPS = 340.0
+
+
 class DrydenTurbulence:
     """Seeded Dryden gust-velocity generator.
 
@@ -135,9 +139,10 @@ class DrydenTurbulence:
 
     def __init__(self, V_mps: float, altitude_m: float, sigma_mps=None, wind20_mps: float | None = None,
                  length_scales_m=None, seed=None, rng: np.random.Generator | None = None):
-        if not V_mps > 0:
+        if not 0 < V_mps <= MAX_AIRSPEED_MPS:
             raise ConfigError("Dryden turbulence is frozen turbulence advected at the airspeed", field="V_mps",
-                              expected="a speed > 0 m/s (for hover: the mean wind)", got=V_mps)
+                              expected=f"a speed in (0, {MAX_AIRSPEED_MPS:g}] m/s (for hover: the mean wind)",
+                              got=V_mps)
         sig_std, L_std = low_altitude_scales(altitude_m, V_mps if wind20_mps is None else wind20_mps)
         sigma = sig_std if sigma_mps is None else np.broadcast_to(np.asarray(sigma_mps, float), (3,)).copy()
         L = L_std if length_scales_m is None else np.asarray(length_scales_m, float).reshape(3)

@@ -87,12 +87,17 @@ class Setup:
         return dataclasses.replace(vehicle.commands, **over) if over else vehicle.commands
 
 
+#: largest magnitude of a number in a scenario option (degrees, m/s, s, ...): wind_mps = 1e300 overflowed the
+#: turbulence filter's covariance into a traceback; beyond 1e6 no option means a flyable case
+MAX_OPTION_MAGNITUDE = 1e6
+
+
 def merged_options(ctx: Context, defaults: dict) -> dict:
     """The scenario's options over its defaults.
 
     An unknown option is an error naming it and the valid ones; a given option must have its default's type
-    (a number where the default is a number, a list of numbers where it is such a list), and no number may be NaN
-    or infinite.
+    (a number where the default is a number, a list of numbers where it is such a list), and no number may be NaN,
+    infinite or of magnitude above :data:`MAX_OPTION_MAGNITUDE`.
     """
     unknown = sorted(set(ctx.options) - set(defaults))
     if unknown:
@@ -107,6 +112,9 @@ def merged_options(ctx: Context, defaults: dict) -> dict:
         items = val if isinstance(val, (list, tuple)) else [val]
         if any(number(x) and not math.isfinite(x) for x in items):
             raise ConfigError(field=f"options.{key}", expected="finite numbers", got=val)
+        if any(number(x) and abs(x) > MAX_OPTION_MAGNITUDE for x in items):
+            raise ConfigError("implausible option value", field=f"options.{key}",
+                              expected=f"numbers of magnitude at most {MAX_OPTION_MAGNITUDE:g}", got=val)
         if isinstance(d, bool):
             ok, want = isinstance(val, bool), "true or false"
         elif number(d):

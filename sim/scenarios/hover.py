@@ -34,11 +34,15 @@ def _switch_gains(vehicle, name) -> GainSet:
     names = [name] if name else ["optimal", "optimal-flight"]
     for n in names:
         try:
-            return load_gains(gains_path(vehicle.name, n))
-        except UnknownNameError:
+            return load_gains(gains_path(vehicle, n))
+        except (UnknownNameError, ConfigError):  # no such set, or a vehicle file with no gain sets at all
             continue
-    raise UnknownNameError(f"gain set of {vehicle.name} to switch to", str(name or "optimal"),
-                           list_gains(vehicle.name))
+    valid = list_gains(vehicle)
+    if not valid:
+        raise ConfigError(f"the hover scenario switches gain sets in flight, and vehicle '{vehicle.name}' has none "
+                          f"beside its file ({vehicle.path})", field="options.switch_to",
+                          expected="a gain set in gains/NAME.toml beside the vehicle file", got=name)
+    raise UnknownNameError(f"gain set of {vehicle.name} to switch to", str(name or "optimal"), valid)
 
 
 def setup(ctx: Context) -> Setup:
