@@ -303,7 +303,7 @@ def tune_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals, *, s
     blk = _block(ap, p, axis, dt)
     S = Structure([blk])
     th0 = S.values
-    lower = np.zeros(len(th0))
+    lower = np.array([max(0.0, ap.TABLE[n].min or 0.0) for n in blk.roles.values()])
     upper = np.array([_upper(ap, n) for n in blk.roles.values()])
     th0 = np.clip(th0, lower, upper)
     channels, poles = [], None
