@@ -6,16 +6,17 @@ period, ``F`` the autopilot's gyro low-pass at its cutoff):
 
 * crossover band at the plant input: ``wc_max`` is where the loop's lag beyond the rigid body's integrator (delay,
   zero-order hold, gyro filter and the actuator's lag, the model's fast poles; :func:`crossover_band`) reaches
-  60 deg (a phase of -150 deg): past it the D term's lead cannot buy the phase a disk margin of 0.4 or more
-  needs; ``wc_min = wc_max / 10`` (yaw's authority, not its phase, sets its crossover, often near the band's low
-  end) (hard);
+  75 deg (a plant phase of -165 deg): the D term's lead at crossover, a few tens of degrees behind the D-term
+  filter, must still leave the 23 deg or more of phase margin a disk margin of 0.4 implies; ``wc_min = wc_max /
+  10`` (yaw's authority, not its phase, sets its crossover, often near the band's low end) (hard);
 * balanced disk margin at the plant input (both loops broken there, Seiler et al. 2020) at least
   ``max(0.4, the baselines')``: never less robust than what flies today, and never below 0.4 (about 3.5 dB and
   23 deg at once) (hard);
 * the command's response to gyro noise ``|u_ctrl / n_q|`` (normalised torque per rad/s, peaking at high
   frequency through the D term) at most ``NOISE_FACTOR`` (2) times the largest of the baselines' that meet the
   disk floor (all baselines' where none does): a tuned D term may double the command noise of a robust set
-  flown today, not follow a baseline that buys its rejection with a marginally stable loop (hard);
+  flown today, not follow a baseline that buys its rejection with a marginally stable loop; ``NOISE_DEFAULT``
+  where no baseline is stable (hard);
 * input-disturbance rejection ``theta / d_u`` (angle, rad, per unit torque disturbance), minimised: its peak
   gain, and its gain weighted by ``(s + wc_min) / s`` (the low-frequency part that decides how fast a step
   disturbance is worked off: the IAE), each normalised by the best baseline, so that a value below 1 on both beats
@@ -37,12 +38,14 @@ from rotorlab.autopilots import get as get_autopilot
 from rotorlab.tune import goals as G
 from rotorlab.tune.autopilot import AXES, analyse_axis, evaluate_axis
 
-__all__ = ["PHASE_LIMIT_DEG", "DISK_FLOOR", "BAND_RATIO", "NOISE_FACTOR", "crossover_band", "generic_spec"]
+__all__ = ["PHASE_LIMIT_DEG", "DISK_FLOOR", "BAND_RATIO", "NOISE_FACTOR", "NOISE_DEFAULT", "crossover_band", "generic_spec"]
 
-PHASE_LIMIT_DEG = -150.0
+PHASE_LIMIT_DEG = -165.0
 DISK_FLOOR = 0.4
 BAND_RATIO = 10.0
 NOISE_FACTOR = 2.0
+# with no stable baseline: 1 normalised torque per rad/s (0.3 deg/s of gyro noise moves the command 0.5 %)
+NOISE_DEFAULT = 1.0
 
 
 def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tuple[float, float]:
@@ -54,7 +57,7 @@ def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tup
     Butterworth low-pass, its low-frequency group delay), and one term per stable pole ``p`` of ``G`` with
     ``|p| >= 1 / (10 tau_eff)``: the actuator (motor lag) and faster dynamics, the actuator bandwidth in the
     model (slower poles are the rigid body's own and its drag, and unstable ones the free vehicle's slow modes,
-    all far below any crossover). ``wc_max`` is where that lag reaches ``180 + PHASE_LIMIT_DEG - (-90)`` = 60 deg,
+    all far below any crossover). ``wc_max`` is where that lag reaches ``-90 - PHASE_LIMIT_DEG`` = 75 deg,
     ``wc_min = wc_max / BAND_RATIO``.
     """
     G = lti.as_ss(G)
@@ -63,7 +66,7 @@ def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tup
     tau = delay_s + dt_s / 2 + math.sqrt(2.0) / (2 * math.pi * gyro_cutoff_hz)
     poles = np.linalg.eigvals(np.asarray(G.A, float))
     fast = poles[(poles.real < 0) & (np.abs(poles) >= 1.0 / (10.0 * tau))]
-    budget = math.radians(PHASE_LIMIT_DEG + 270.0)
+    budget = math.radians(-90.0 - PHASE_LIMIT_DEG)
 
     def lag(w):
         return w * tau + float(np.sum(-np.angle(1.0 / (1.0 - 1j * w / fast)))) - budget
@@ -127,7 +130,7 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
         ok = {b: a for b, a in an.items() if a.stable}
         disk = max([DISK_FLOOR] + [a.disk_alpha for a in ok.values()])
         robust = [a.noise_gain for a in ok.values() if a.disk_alpha >= DISK_FLOOR] or [a.noise_gain for a in ok.values()]
-        noise = NOISE_FACTOR * max(robust, default=math.inf)
+        noise = NOISE_FACTOR * max(robust) if robust else NOISE_DEFAULT
         hp = G.Rejection("d_u", "theta", G.highpass_max_gain(1, 0.0, lo))
         lf = {b: evaluate_axis(ap, baselines[b], axis, Gp, [hp])[0].value for b in ok}
         peak = min((a.dist_hinf for a in ok.values()), default=1.0)
@@ -139,7 +142,7 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
         lines += [
             f"# ---- {axis}: delay {_fmt(delay_s)} s = {_fmt(delay_s / dt_s)} loop periods. Baselines: {table}.",
             f"# Crossover band: the lag of delay, hold, the {_fmt(cutoff)} Hz gyro filter and the model's actuator "
-            f"(fast) poles {_poles_text(G_rate, delay_s, dt_s, cutoff)} reaches {PHASE_LIMIT_DEG + 270:g} deg beyond "
+            f"(fast) poles {_poles_text(G_rate, delay_s, dt_s, cutoff)} reaches {-90 - PHASE_LIMIT_DEG:g} deg beyond "
             f"the integrator at {hi:.4g} rad/s = wc_max; wc_min = wc_max / {BAND_RATIO:g}.",
             "[[goal]]", f'axis = "{axis}"', 'type = "crossover"', 'loop = "u"',
             f"band_rad_s = [{_fmt(lo)}, {_fmt(hi)}]", "",
