@@ -287,7 +287,7 @@ def evaluate_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals) 
 
 
 def tune_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals, *, starts: int = 1, seed=0,
-              max_iter: int = 40, tol: float = 1e-3, n_jobs: int = 1, executor=None,
+              max_iter: int = 30, tol: float = 1e-3, n_jobs: int = 1, executor=None,
               time_limit_s=None) -> AxisTuneResult:
     """Tune the angle P and rate P, I, D of one axis on ``Gp`` (:func:`axis_plant`) against ``goals``.
 
@@ -340,7 +340,7 @@ def _upper(ap, name):
 
 
 def tune_autopilot(spec, plants: Mapping[str, ct.StateSpace], params: Mapping[str, float], *, starts: int = 1,
-                   seed=0, max_iter: int = 40, n_jobs: int = 1, executor=None) -> dict:
+                   seed=0, max_iter: int = 30, n_jobs: int = 1, executor=None) -> dict:
     """Tune every axis of an :class:`rotorlab.tune.spec.AutopilotSpec` on ``plants`` (axis -> :func:`axis_plant`
     at ``spec.dt``), starting from and keeping the filters of ``params``. Returns axis -> :class:`AxisTuneResult`.
 

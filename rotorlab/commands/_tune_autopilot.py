@@ -106,7 +106,7 @@ def run_autopilot(args) -> int:
         if not spec.axes:
             raise ConfigError("no model for any axis the spec tunes", field="--model", expected=", ".join(AXES))
         res = T.tune_autopilot(spec, plants, current, starts=args.starts or 1, seed=args.seed,
-                               max_iter=args.max_iter, n_jobs=args.jobs)
+                               max_iter=args.max_iter or 30, n_jobs=args.jobs)
     except (RotorlabError, ValueError) as exc:
         raise CLIError(str(exc)) from None
     tuned = {}

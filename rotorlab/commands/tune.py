@@ -44,7 +44,8 @@ def add_parser(sub):
                    help="number of starts: the start gains, then random starts; the best is kept")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the random starts")
     p.add_argument("--jobs", type=positive_int, default=2, help="processes for the starts")
-    p.add_argument("--max-iter", type=positive_int, default=40, help="outer iterations per start")
+    p.add_argument("--max-iter", type=positive_int, default=None,
+                   help="outer iterations per start (default 40; 30 per axis with --autopilot)")
     return p
 
 
@@ -77,6 +78,7 @@ def run(args) -> int:
     if not args.spec:
         raise CLIError("--spec is required (or --autopilot px4|ardupilot to tune an autopilot's own loops)")
     args.starts = args.starts or 4
+    args.max_iter = args.max_iter or 40
     from rotorlab import atomic
     from rotorlab.gains import save_gains
     from rotorlab.ident.modelio import load_model
