@@ -143,3 +143,28 @@ def test_cli_autopilot_bad_inputs(tmp_path, capsys):
     assert ".params" in capsys.readouterr().err
     assert main(["tune", "--autopilot", "px4", "--model", f"tail={m}", "--out", str(tmp_path / "o.params")]) == 2
     assert "unknown axis" in capsys.readouterr().err
+
+
+def test_match_holds_the_tuned_set_to_one_baselines_margin_and_beats_it():
+    """``match="px4-autotune"``: the spec's disk floor and noise bound are the autotune rule's own (hand-checked
+    against its analysis), and the set tuned to it rejects a torque step better than that rule does, peak and
+    IAE, at a disk margin no smaller than the rule's."""
+    dt = 1 / 250
+    p = autopilots.px4.TABLE.defaults()
+    Gp = T.axis_plant(G_PITCH, 0.028, dt)
+    gains, rejected = T.px4_autotune_params({"pitch": Gp}, p)
+    assert not rejected
+    at = {**p, **gains}
+    text = generic_spec("px4", {"pitch": (Gp, G_PITCH, 0.028)}, dt, p, {"defaults": p, "px4-autotune": at},
+                        match="px4-autotune")
+    spec = parse_spec(tomllib.loads(text))
+    a_at = T.analyse_axis("px4", at, "pitch", Gp)
+    margins = next(g for g in spec.goals["pitch"] if type(g).__name__ == "Margins")
+    effort = next(g for g in spec.goals["pitch"] if type(g).__name__ == "Effort")
+    assert margins.alpha_req() == pytest.approx(a_at.disk_alpha, rel=1e-5)
+    assert effort.max_gain == pytest.approx(a_at.noise_gain, rel=1e-3)
+    r = T.tune_autopilot(spec, {"pitch": Gp}, p)["pitch"]
+    assert r.passed
+    a_t = T.analyse_axis("px4", T._with_gains("px4", p, "pitch", r.gains), "pitch", Gp)
+    assert a_t.disk_alpha >= a_at.disk_alpha - 1e-3
+    assert a_t.dist_peak_rad < a_at.dist_peak_rad and a_t.dist_iae_rad_s < a_at.dist_iae_rad_s

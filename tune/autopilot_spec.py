@@ -38,7 +38,7 @@ from rotorlab.autopilots import get as get_autopilot
 from rotorlab.tune import goals as G
 from rotorlab.tune.autopilot import AXES, analyse_axis, evaluate_axis
 
-__all__ = ["PHASE_LIMIT_DEG", "DISK_FLOOR", "BAND_RATIO", "NOISE_FACTOR", "NOISE_DEFAULT", "crossover_band", "generic_spec"]
+__all__ = ["PHASE_LIMIT_DEG", "DISK_FLOOR", "BAND_RATIO", "NOISE_FACTOR", "NOISE_DEFAULT", "MATCH_BAND", "crossover_band", "generic_spec"]
 
 PHASE_LIMIT_DEG = -165.0
 DISK_FLOOR = 0.4
@@ -46,6 +46,7 @@ BAND_RATIO = 10.0
 NOISE_FACTOR = 2.0
 # with no stable baseline: 1 normalised torque per rad/s (0.3 deg/s of gyro noise moves the command 0.5 %)
 NOISE_DEFAULT = 1.0
+MATCH_BAND = 1.25
 
 
 def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tuple[float, float]:
@@ -96,13 +97,19 @@ def _fmt(x: float) -> str:
 
 
 def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Mapping[str, float],
-                 baselines: Mapping[str, Mapping[str, float]], *, model: str = "model") -> str:
+                 baselines: Mapping[str, Mapping[str, float]], *, model: str = "model", match: str | None = None) -> str:
     """The spec's TOML text for ``plants`` (axis -> ``(Gp, G, delay_s)``: the loop plant of
     :func:`rotorlab.tune.autopilot.axis_plant`, the rate model it was made from and its delay), with every number's
     derivation in comments.
 
     ``params`` are the parameters the tuned set replaces (filters taken from them); ``baselines`` name the sets
     compared against (e.g. ``{"file": ..., "defaults": ..., "px4-autotune": ...}``), complete parameter dicts.
+
+    ``match`` names one baseline whose robustness the tuned set is held to instead of the most robust one's: its
+    disk margin is the floor (no 0.4 minimum), its gyro-noise gain the bound (no factor), and the band's upper
+    edge is at least ``MATCH_BAND`` times its highest crossover. It answers "what does the structure reach at
+    that baseline's margin", e.g. against PX4 autotune's rule on a vehicle where that rule's margin is small.
+    The disturbance goals stay normalised by the best baseline.
     """
     ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
     cutoff = float(params["IMU_GYRO_CUTOFF"] if ap.NAME == "px4" else params["INS_GYRO_FILTER"])
@@ -128,9 +135,26 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
         lo, hi = crossover_band(G_rate, delay_s, dt_s, cutoff)
         an = {b: analyse_axis(ap, p, axis, Gp) for b, p in baselines.items()}
         ok = {b: a for b, a in an.items() if a.stable}
-        disk = max([DISK_FLOOR] + [a.disk_alpha for a in ok.values()])
-        robust = [a.noise_gain for a in ok.values() if a.disk_alpha >= DISK_FLOOR] or [a.noise_gain for a in ok.values()]
-        noise = NOISE_FACTOR * max(robust) if robust else NOISE_DEFAULT
+        if match is not None:
+            if match not in baselines:
+                raise ValueError(f"match: no baseline {match!r}; baselines are {sorted(baselines)}")
+            if match not in ok:
+                raise ValueError(f"match: the baseline {match!r} is unstable on {axis}")
+            m = ok[match]
+            disk, noise = m.disk_alpha, m.noise_gain
+            hi = max(hi, MATCH_BAND * max(m.wc_rad_s, default=0.0))
+            disk_why = f"{match}'s (match)"
+            noise_why = f"{match}'s gain (match)"
+            band_why = f"; at least {MATCH_BAND:g} x {match}'s highest crossover (match)"
+        else:
+            disk = max([DISK_FLOOR] + [a.disk_alpha for a in ok.values()])
+            robust = ([a.noise_gain for a in ok.values() if a.disk_alpha >= DISK_FLOOR]
+                      or [a.noise_gain for a in ok.values()])
+            noise = NOISE_FACTOR * max(robust) if robust else NOISE_DEFAULT
+            disk_why = f"max({DISK_FLOOR}, baselines')"
+            noise_why = (f"{NOISE_FACTOR:g} x the largest of the baselines' that meet the disk floor {DISK_FLOOR:g}"
+                         if robust else f"{NOISE_DEFAULT:g} (no stable baseline)")
+            band_why = ""
         hp = G.Rejection("d_u", "theta", G.highpass_max_gain(1, 0.0, lo))
         lf = {b: evaluate_axis(ap, baselines[b], axis, Gp, [hp])[0].value for b in ok}
         peak = min((a.dist_hinf for a in ok.values()), default=1.0)
@@ -143,15 +167,14 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
             f"# ---- {axis}: delay {_fmt(delay_s)} s = {_fmt(delay_s / dt_s)} loop periods. Baselines: {table}.",
             f"# Crossover band: the lag of delay, hold, the {_fmt(cutoff)} Hz gyro filter and the model's actuator "
             f"(fast) poles {_poles_text(G_rate, delay_s, dt_s, cutoff)} reaches {-90 - PHASE_LIMIT_DEG:g} deg beyond "
-            f"the integrator at {hi:.4g} rad/s = wc_max; wc_min = wc_max / {BAND_RATIO:g}.",
+            f"the integrator at wc_max{band_why}: {hi:.4g} rad/s; wc_min = wc_max / {BAND_RATIO:g}.",
             "[[goal]]", f'axis = "{axis}"', 'type = "crossover"', 'loop = "u"',
             f"band_rad_s = [{_fmt(lo)}, {_fmt(hi)}]", "",
-            f"# Disk margin at the plant input >= max({DISK_FLOOR}, baselines') = {disk:.4g}: GM {gm:.4g} dB and PM "
+            f"# Disk margin at the plant input >= {disk_why} = {disk:.4g}: GM {gm:.4g} dB and PM "
             f"{pm:.4g} deg at once.",
             "[[goal]]", f'axis = "{axis}"', 'type = "margins"', 'point = "u"', f"gm_db = {_fmt(gm)}",
             f"pm_deg = {_fmt(pm)}", "",
-            f"# Gyro noise to command (through P and the D term), normalised torque per rad/s: at most {NOISE_FACTOR:g} x "
-            f"the largest of the baselines' that meet the disk floor {DISK_FLOOR:g}.",
+            f"# Gyro noise to command (through P and the D term), normalised torque per rad/s: at most {noise_why}.",
             "[[goal]]", f'axis = "{axis}"', 'type = "effort"', 'from = "n_q"', 'to = "u_ctrl"',
             f"max_gain = {_fmt(noise * 1.0001)}", "hard = true", "",
             "# Input disturbance, minimised: the peak |theta/d_u| (rad per unit torque) over the best baseline's ...",

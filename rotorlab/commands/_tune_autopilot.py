@@ -84,6 +84,8 @@ def run_autopilot(args) -> int:
             # PX4 autotune flies its excitation on the gains flown today; an axis it rejects keeps them
             gains, rejected = T.px4_autotune_params(plants, current, seed=args.seed)
             baselines["px4-autotune"] = {**current, **gains}
+        if args.match and args.match not in baselines:
+            raise ConfigError("no such baseline", field="--match", expected=" or ".join(baselines), got=args.match)
         if args.spec:
             spec = load_spec(args.spec)
             if not isinstance(spec, AutopilotSpec) or spec.autopilot != ap.NAME:
@@ -96,7 +98,7 @@ def run_autopilot(args) -> int:
         else:
             model_names = ", ".join(sorted({m[2] for m in models.values()}))
             spec_text = generic_spec(ap, {a: (plants[a], models[a][0], models[a][1]) for a in plants}, dt, current,
-                                     baselines, model=model_names)
+                                     baselines, model=model_names, match=args.match)
             import tomllib
 
             spec = parse_spec(tomllib.loads(spec_text), name="generic", src="<generated spec>")
