@@ -37,7 +37,7 @@ def test_the_tuning_problem_closes_the_loop_closed_loop_lti_closes(autopilot, ax
         p[ap.axis_names(axis)["K"]] = 1.7
         p[ap.axis_names(axis)["I"]] = 0.3
     Gp = T.axis_plant(G_PITCH, 0.0281, dt)
-    blk = T.AutopilotAxisBlock(ap, T._with_gains(ap, p, axis, T.parallel_gains(ap, p, axis)), axis, dt)
+    blk = T.AutopilotAxisBlock(ap, T.apply_gains(ap, p, axis, T.parallel_gains(ap, p, axis)), axis, dt)
     got = closed_loop(cas.generalised_plant(Gp, (), inputs=("theta_ref",), outputs=("q", "theta", "u_ctrl")),
                       cas.N_MEAS, cas.N_CON, blk.single())
     want = autopilots.closed_loop_lti(ap, p, axis, Gp, loop="attitude")
@@ -165,6 +165,20 @@ def test_match_holds_the_tuned_set_to_one_baselines_margin_and_beats_it():
     assert effort.max_gain == pytest.approx(a_at.noise_gain, rel=1e-3)
     r = T.tune_autopilot(spec, {"pitch": Gp}, p)["pitch"]
     assert r.passed
-    a_t = T.analyse_axis("px4", T._with_gains("px4", p, "pitch", r.gains), "pitch", Gp)
+    a_t = T.analyse_axis("px4", T.apply_gains("px4", p, "pitch", r.gains), "pitch", Gp)
     assert a_t.disk_alpha >= a_at.disk_alpha - 1e-3
     assert a_t.dist_peak_rad < a_at.dist_peak_rad and a_t.dist_iae_rad_s < a_at.dist_iae_rad_s
+
+
+def test_autopilot_spec_errors_name_file_and_field(tmp_path):
+    from rotorlab.errors import ConfigError
+    from rotorlab.tune.spec import load_spec
+
+    bad = tmp_path / "s.toml"
+    bad.write_text('[autopilot]\nname = "px4"\ndt = 0.004\n[[goal]]\ntype = "margins"\npoint = "u"\n')
+    with pytest.raises(ConfigError) as exc:
+        load_spec(bad)
+    assert "goal[0].axis" in str(exc.value) and str(bad) in str(exc.value)
+    bad.write_text('[autopilot]\nname = "inav"\ndt = 0.004\n[[goal]]\naxis = "roll"\ntype = "margins"\n')
+    with pytest.raises(ConfigError, match="autopilot.name"):
+        load_spec(bad)

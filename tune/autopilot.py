@@ -43,7 +43,8 @@ from rotorlab.tune.hinfstruct import SPEC_SUB_ITER, StartFailure, _Problem, clos
 from rotorlab.tune.margins import crossover_frequencies, margins
 
 __all__ = ["AXES", "tuned_names", "axis_plant", "AutopilotAxisBlock", "margins_goal", "analyse_axis",
-           "AxisAnalysis", "tune_axis", "AxisTuneResult", "evaluate_axis", "parallel_gains", "disturbance_response"]
+           "AxisAnalysis", "tune_axis", "tune_autopilot", "AxisTuneResult", "evaluate_axis", "parallel_gains",
+           "apply_gains", "px4_autotune_params", "disturbance_response"]
 
 AXES = ("roll", "pitch", "yaw")
 
@@ -191,7 +192,7 @@ class AxisAnalysis:
 
 
 def _closed(autopilot, params, axis, Gp, inputs, outputs):
-    blk = _block(autopilot, _with_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis,
+    blk = _block(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis,
                  float(Gp.dt))
     K = blk.single()
     return closed_loop(cas.generalised_plant(Gp, (), inputs=inputs, outputs=outputs), cas.N_MEAS, cas.N_CON, K), K
@@ -211,7 +212,17 @@ def disturbance_response(autopilot, params, axis: str, Gp, horizon_s: float = 2.
 
 
 def analyse_axis(autopilot, params: Mapping[str, float], axis: str, Gp, horizon_s: float = 2.0) -> AxisAnalysis:
-    """:class:`AxisAnalysis` of ``params`` (the autopilot's names and units) around ``Gp`` (:func:`axis_plant`)."""
+    """:class:`AxisAnalysis` of ``params`` (the autopilot's names and units) around ``Gp`` (:func:`axis_plant`).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab.autopilots import px4
+    >>> Gp = axis_plant(ct.tf([100.0], [1 / 27.0, 1.0, 0.0]), 0.028, 1 / 250)
+    >>> a = analyse_axis("px4", px4.TABLE.defaults(), "pitch", Gp)
+    >>> a.stable, round(a.disk_alpha, 2)
+    (True, 0.49)
+    """
     dt = float(Gp.dt)
     T, K = _closed(autopilot, params, axis, Gp, ("d_u", "n_q"), ("theta", "u_ctrl"))
     if not lti.is_stable(T):
@@ -255,7 +266,17 @@ def parallel_gains(autopilot, params: Mapping[str, float], axis: str) -> dict[st
     return {n: float(params[n]) * (1.0 if r == "ANG_P" else k) for r, n in roles.items()}
 
 
-def _with_gains(autopilot, params, axis, gains):
+def apply_gains(autopilot, params: Mapping[str, float], axis: str, gains: Mapping[str, float]) -> dict:
+    """``params`` with the tuned ``gains`` of ``axis`` in place (PX4: and ``MC_*RATE_K = 1``, the form the gains
+    are tuned in).
+
+    Examples
+    --------
+    >>> from rotorlab.autopilots import px4
+    >>> p = apply_gains("px4", px4.TABLE.defaults(), "roll", {"MC_ROLLRATE_P": 0.2})
+    >>> p["MC_ROLLRATE_P"], p["MC_ROLLRATE_K"]
+    (0.2, 1.0)
+    """
     ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
     p = {**params, **gains}
     if ap.NAME == "px4":
@@ -266,7 +287,7 @@ def _with_gains(autopilot, params, axis, gains):
 def evaluate_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals) -> list:
     """Every goal of ``goals`` (:mod:`rotorlab.tune.goals` objects) for ``params`` around ``Gp``."""
     dt = float(Gp.dt)
-    blk = _block(autopilot, _with_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis, dt)
+    blk = _block(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis, dt)
     S = Structure([blk])
     th = S.values
     K = S.ss(th)
@@ -299,7 +320,7 @@ def tune_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals, *, s
     t0 = time.perf_counter()
     dt = float(Gp.dt)
     ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
-    p = _with_gains(ap, params, axis, parallel_gains(ap, params, axis))
+    p = apply_gains(ap, params, axis, parallel_gains(ap, params, axis))
     blk = _block(ap, p, axis, dt)
     S = Structure([blk])
     th0 = S.values
@@ -330,7 +351,7 @@ def tune_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals, *, s
     if best is None:
         raise ValueError(f"{ap.NAME} {axis}: no start stabilises the loop; start from parameters that do")
     gains = dict(zip(blk.roles.values(), map(float, best[0])))
-    rep = evaluate_axis(ap, _with_gains(ap, params, axis, gains), axis, Gp, goals)
+    rep = evaluate_axis(ap, apply_gains(ap, params, axis, gains), axis, Gp, goals)
     return AxisTuneResult(axis, gains, rep, G.objective(rep), per_start, time.perf_counter() - t0)
 
 
@@ -352,9 +373,10 @@ def tune_autopilot(spec, plants: Mapping[str, ct.StateSpace], params: Mapping[st
     >>> from rotorlab.tune.spec import parse_spec
     >>> import tomllib
     >>> dt = 1 / 250
-    >>> Gp = axis_plant(ct.tf([1 / 0.02], [1 / 27.0, 1.0, 0.0]), 0.026, dt)   # inertia, motor lag, 6.5 periods
+    >>> Gp = axis_plant(ct.tf([1 / 0.02], [1 / 27.0, 1.0, 0.0]), 0.026, dt)  # inertia, motor lag, 6.5 periods
     >>> p = px4.TABLE.defaults()
-    >>> spec = parse_spec(tomllib.loads(generic_spec("px4", {"pitch": (Gp, 0.026)}, dt, p, {"defaults": p})))
+    >>> G = ct.tf([1 / 0.02], [1 / 27.0, 1.0, 0.0])
+    >>> spec = parse_spec(tomllib.loads(generic_spec("px4", {"pitch": (Gp, G, 0.026)}, dt, p, {"defaults": p})))
     >>> res = tune_autopilot(spec, {"pitch": Gp}, p)
     >>> res["pitch"].passed
     True
