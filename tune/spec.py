@@ -11,6 +11,10 @@
     loop = "theta"
     band_rad_s = [3.5, 14.0]
 
+A spec for an autopilot's own loops (:class:`AutopilotSpec`, :mod:`rotorlab.tune.autopilot`) has an
+``[autopilot]`` table (``name`` px4/ardupilot, ``dt`` the loop period in s, ``axes``) instead of ``[cascade]``, and
+every ``[[goal]]`` names its ``axis``; :func:`rotorlab.tune.autopilot_spec.generic_spec` writes one from a plant.
+
 Goal types (the registry :data:`rotorlab.tune.goals.GOAL_TYPES` that :meth:`~rotorlab.tune.goals.Goal.from_toml`
 dispatches on): ``crossover`` (loop, band_rad_s), ``tracking`` (from, to, response_time_s, max_error_pct,
 peak_error), ``rejection`` / ``gain`` (from, to, weight), ``sensitivity`` (point, weight), ``effort``

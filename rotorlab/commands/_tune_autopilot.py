@@ -121,10 +121,12 @@ def run_autopilot(args) -> int:
              + ", ".join(f"{a}={models[a][2]} (delay {models[a][1]:.4g} s)" for a in res),
              f"spec: {'generic multirotor spec (rotorlab.tune.autopilot_spec)' if spec_text else args.spec}; "
              f"baselines: {', '.join(baselines)}",
-             "goals per axis: crossover band, disk margin floor, gyro-noise bound (hard); input-disturbance peak "
-             "and low-frequency rejection (soft, minimised)"]
+             "goals per axis: crossover band, disk margin floor, gyro-noise bound (hard, <= 1 met); input-disturbance "
+             "peak and low-frequency rejection (soft, minimised; 1 = the best baseline's)"]
     for a, r in res.items():
-        lines.append(f"{a}: " + "; ".join(f"{x.goal} {x.value:.3f}{'' if x.passed else ' FAIL'}" for x in r.report))
+        lines.append(f"{a}: " + "; ".join(
+            f"{x.goal} {x.value:.3f}" + (" (hard)" + ("" if x.passed else " FAIL") if x.hard else " (soft)")
+            for x in r.report))
     for a, why in rejected.items():
         lines.append(f"px4-autotune baseline {a}: {why} (it keeps the flown gains)")
     header = "\n".join(lines)
