@@ -39,7 +39,7 @@ def test_the_tuning_problem_closes_the_loop_closed_loop_lti_closes(autopilot, ax
     Gp = T.axis_plant(G_PITCH, 0.0281, dt)
     blk = T.AutopilotAxisBlock(ap, T.apply_gains(ap, p, axis, T.parallel_gains(ap, p, axis)), axis, dt)
     got = closed_loop(cas.generalised_plant(Gp, (), inputs=("theta_ref",), outputs=("q", "theta", "u_ctrl")),
-                      cas.N_MEAS, cas.N_CON, blk.single())
+                      cas.N_MEAS, cas.N_CON, blk.ss())
     want = autopilots.closed_loop_lti(ap, p, axis, Gp, loop="attitude")
     w = np.geomspace(0.1, math.pi / dt * 0.99, 60)
     fg = np.array([[ct.evalfr(got[i, 0], np.exp(1j * x * dt)) for x in w] for i in range(3)])

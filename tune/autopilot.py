@@ -31,7 +31,6 @@ from collections.abc import Mapping
 
 import control as ct
 import numpy as np
-from scipy import linalg as sla
 
 from rotorlab import lti
 from rotorlab.autopilots import get as get_autopilot
@@ -92,18 +91,18 @@ def axis_plant(G, delay_s: float, dt_s: float) -> ct.StateSpace:
 
 
 class AutopilotAxisBlock(Block):
-    """One axis of an autopilot's cascade as a tunable block, repeated ``copies`` times with shared gains.
+    """One axis of an autopilot's cascade as a tunable block.
 
-    Each copy reads ``[angle_sp, angle, rate_sp, rate]`` (the measurements of
+    It reads ``[angle_sp, angle, rate_sp, rate]`` (the measurements of
     :func:`rotorlab.tune.cascade.generalised_plant`) and drives ``[rate_sp_cmd, torque]``: ``rate_sp_cmd =
     ANG_P (angle_sp - angle)`` and the autopilot's rate law from ``(rate_sp, rate)``. Parameters are the
     autopilot's names of :func:`tuned_names`; the matrices are affine in them (``fixed_structure`` realisation),
     so their derivatives are constant and exact.
     """
 
-    def __init__(self, autopilot, params: Mapping[str, float], axis: str, dt_s: float, copies: int = 1):
+    def __init__(self, autopilot, params: Mapping[str, float], axis: str, dt_s: float):
         ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
-        self.ap, self.axis, self.copies, self._dt_s = ap, axis, int(copies), float(dt_s)
+        self.ap, self.axis, self._dt_s = ap, axis, float(dt_s)
         self.roles = tuned_names(ap, axis)
         base = dict(params)
         if ap.NAME == "px4":
@@ -120,10 +119,9 @@ class AutopilotAxisBlock(Block):
         want = self._one(probe)
         got = self._affine([probe[n] for n in names])
         if not all(np.allclose(a, b, atol=1e-9) for a, b in zip(want, got)):
-            raise AssertionError(f"{ap.NAME} {axis}: the fixed-structure law is not affine in {names}")
+            raise ValueError(f"{ap.NAME} {axis}: the fixed-structure law is not affine in {names}")
         super().__init__(f"{ap.NAME}_{axis}", [Param(n, float(base[n]), lower=0.0) for n in names],
-                         4 * self.copies, 2 * self.copies, self._m0[0].shape[0] * self.copies, dt_s)
-        self.base = base
+                         4, 2, self._m0[0].shape[0], dt_s)
 
     def _one(self, params):
         C = self.ap.rate_controller_lti(params, self.axis, self._dt_s, fixed_structure=True)
@@ -138,27 +136,12 @@ class AutopilotAxisBlock(Block):
     def _affine(self, theta):
         return tuple(m0 + sum(t * dm[j] for t, dm in zip(theta, self._dm)) for j, m0 in enumerate(self._m0))
 
-    def _copies(self, M):
-        return tuple(sla.block_diag(*([m] * self.copies)) for m in M)
-
     def matrices(self, theta):
-        return self._copies(self._affine(np.asarray(theta, float)))
+        return self._affine(np.asarray(theta, float))
 
     def matrix_derivatives(self, theta, idx):
-        return [self._copies(self._dm[i]) for i in idx]
+        return [self._dm[i] for i in idx]
 
-    def single(self, theta=None) -> ct.StateSpace:
-        """One copy: inputs ``[angle_sp, angle, rate_sp, rate]``, outputs ``[rate_sp_cmd, torque]``."""
-        th = self.values if theta is None else np.asarray(theta, float)
-        return ct.ss(*self._affine(th), self.dt)
-
-    def gains(self, theta=None) -> dict[str, float]:
-        th = self.values if theta is None else np.asarray(theta, float)
-        return dict(zip(self.roles.values(), map(float, th)))
-
-
-def _block(autopilot, params, axis, dt_s, copies=1):
-    return AutopilotAxisBlock(autopilot, params, axis, dt_s, copies)
 
 
 # ------------------------------------------------------------------------------------------------- goals -------
@@ -192,9 +175,9 @@ class AxisAnalysis:
 
 
 def _closed(autopilot, params, axis, Gp, inputs, outputs):
-    blk = _block(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis,
+    blk = AutopilotAxisBlock(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis,
                  float(Gp.dt))
-    K = blk.single()
+    K = blk.ss()
     return closed_loop(cas.generalised_plant(Gp, (), inputs=inputs, outputs=outputs), cas.N_MEAS, cas.N_CON, K), K
 
 
@@ -287,7 +270,7 @@ def apply_gains(autopilot, params: Mapping[str, float], axis: str, gains: Mappin
 def evaluate_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals) -> list:
     """Every goal of ``goals`` (:mod:`rotorlab.tune.goals` objects) for ``params`` around ``Gp``."""
     dt = float(Gp.dt)
-    blk = _block(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis, dt)
+    blk = AutopilotAxisBlock(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis, dt)
     S = Structure([blk])
     th = S.values
     K = S.ss(th)
@@ -321,7 +304,7 @@ def tune_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals, *, s
     dt = float(Gp.dt)
     ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
     p = apply_gains(ap, params, axis, parallel_gains(ap, params, axis))
-    blk = _block(ap, p, axis, dt)
+    blk = AutopilotAxisBlock(ap, p, axis, dt)
     S = Structure([blk])
     th0 = S.values
     lower = np.array([max(0.0, ap.TABLE[n].min or 0.0) for n in blk.roles.values()])
