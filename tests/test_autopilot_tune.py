@@ -182,3 +182,21 @@ def test_autopilot_spec_errors_name_file_and_field(tmp_path):
     bad.write_text('[autopilot]\nname = "inav"\ndt = 0.004\n[[goal]]\naxis = "roll"\ntype = "margins"\n')
     with pytest.raises(ConfigError, match="autopilot.name"):
         load_spec(bad)
+
+
+def test_cli_reads_the_flown_parameters_as_filters_start_and_baseline(px4_400hz, tmp_path, capsys):
+    """``--params``: a file with PX4's K = 2 and a 60 Hz gyro filter is a baseline named ``file``, its filter is
+    the one in the loop (the generated spec's band uses it) and the written set holds the parallel form, K = 1."""
+    _, d = px4_400hz
+    cur = tmp_path / "flown.params"
+    cur.write_text("1\t1\tMC_PITCHRATE_K\t2.0\t9\n1\t1\tMC_PITCHRATE_P\t0.06\t9\n1\t1\tIMU_GYRO_CUTOFF\t60.0\t9\n")
+    out = tmp_path / "t.params"
+    assert main(["tune", "--autopilot", "px4", "--model", f"pitch={d / 'pitch.json'}", "--params", str(cur),
+                 "--out", str(out), "--spec-out", str(tmp_path / "s.toml")]) == 0
+    text = capsys.readouterr().out
+    assert "  file " in text and "  defaults " in text
+    assert autopilots.read_params(out)["MC_PITCHRATE_K"] == 1.0
+    assert "60 Hz gyro filter" in (tmp_path / "s.toml").read_text()
+    assert main(["tune", "--autopilot", "px4", "--model", f"pitch={d / 'pitch.json'}", "--match", "nope",
+                 "--out", str(out)]) == 2
+    assert "--match" in capsys.readouterr().err
