@@ -148,13 +148,17 @@ def _number(doc, key, file, default=None, minimum=None):
     return float(v)
 
 
-def load_model(path) -> tuple[ct.StateSpace, float, dict]:
+def load_model(path, whole_samples: bool = True) -> tuple[ct.StateSpace, float, dict]:
     """Read a model JSON (state-space or transfer-function form).
 
     Parameters
     ----------
     path : str or Path
         A model JSON written by :func:`save_model` (``rotorlab ident --out``) or by hand.
+    whole_samples : bool
+        Refuse (the default) a discrete model whose delay is not a whole number of its samples: the cascade
+        tuner's exact shift register needs one. The autopilot tuner resamples any delay exactly and reads with
+        ``whole_samples=False``.
 
     Returns
     -------
@@ -238,7 +242,7 @@ def load_model(path) -> tuple[ct.StateSpace, float, dict]:
         meta = {k: v for k, v in doc.items() if k not in ("A", "B", "C", "D", "dt", "delay_s")}
         if doc.get("K") is not None:
             meta["K"] = _matrix(doc, "K", file, (n, C.shape[0]))
-    if dt > 0:
+    if dt > 0 and whole_samples:
         k = delay_s / dt
         if abs(k - round(k)) > 1e-6:
             raise ConfigError("delay is not a whole number of samples", file=file, field="delay_s",

@@ -32,12 +32,12 @@ from .montecarlo import MonteCarloResult, random_delta, single_loop, worst_case_
 # submodules rotorlab.tune.margins / rotorlab.tune.montecarlo are not shadowed by same-named functions)
 from .robust import HLim, additive_spread, control_sensitivity, fit_wdelta, h_lim, h_lim_analysis
 from .simc import HalfRuleModel, half_rule, simc_pid
-from .spec import Spec, load_spec, parse_spec
+from .spec import AutopilotSpec, Spec, load_spec, parse_spec
 
 __all__ = ["PID", "PID2", "Custom", "FixedOrderSS", "StaticGain", "Structure", "Channel", "HinfstructResult",
            "NotStabilisableError", "closed_loop", "hinfstruct", "PlantModel", "cascade_plant", "generalised_plant",
            "plant_model", "CrossoverBand", "Effort", "Margins", "Poles", "Rejection", "Sensitivity", "Tracking",
-           "evaluate", "format_report", "tune_cascade", "Spec", "load_spec", "parse_spec", "HLim", "additive_spread",
+           "evaluate", "format_report", "tune_cascade", "Spec", "AutopilotSpec", "load_spec", "parse_spec", "HLim", "additive_spread",
            "control_sensitivity", "fit_wdelta", "h_lim", "h_lim_analysis", "MonteCarloResult", "random_delta",
            "single_loop", "worst_case_delta", "crossover_frequencies", "disk_margin", "MixedSensitivityWeights",
            "glover_mcfarlane", "hinf_mixed_sensitivity", "modified_pid", "tuhh_axis_plant", "tuhh_generalized_plant",

@@ -11,6 +11,10 @@
     loop = "theta"
     band_rad_s = [3.5, 14.0]
 
+A spec for an autopilot's own loops (:class:`AutopilotSpec`, :mod:`rotorlab.tune.autopilot`) has an
+``[autopilot]`` table (``name`` px4/ardupilot, ``dt`` the loop period in s, ``axes``) instead of ``[cascade]``, and
+every ``[[goal]]`` names its ``axis``; :func:`rotorlab.tune.autopilot_spec.generic_spec` writes one from a plant.
+
 Goal types (the registry :data:`rotorlab.tune.goals.GOAL_TYPES` that :meth:`~rotorlab.tune.goals.Goal.from_toml`
 dispatches on): ``crossover`` (loop, band_rad_s), ``tracking`` (from, to, response_time_s, max_error_pct,
 peak_error), ``rejection`` / ``gain`` (from, to, weight), ``sensitivity`` (point, weight), ``effort``
@@ -29,7 +33,7 @@ from rotorlab.errors import ConfigError, UnknownNameError
 from rotorlab.tune import cascade as cas
 from rotorlab.tune import goals as G
 
-__all__ = ["Spec", "load_spec", "parse_spec", "builtin_specs", "SPEC_DIR"]
+__all__ = ["Spec", "AutopilotSpec", "load_spec", "parse_spec", "builtin_specs", "SPEC_DIR"]
 
 SPEC_DIR = Path(__file__).parent / "specs"
 
@@ -49,17 +53,65 @@ class Spec:
 MIN_DT_S = 1e-4
 
 
+@dataclasses.dataclass
+class AutopilotSpec:
+    """A spec for an autopilot's own loops (:mod:`rotorlab.tune.autopilot`): ``[autopilot]`` with ``name``
+    (px4, ardupilot), ``dt`` (loop period, s) and ``axes``; every ``[[goal]]`` names its ``axis``. Written by
+    :func:`rotorlab.tune.autopilot_spec.generic_spec`."""
+
+    name: str
+    autopilot: str
+    dt: float
+    axes: list
+    goals: dict  # axis -> [Goal]
+
+
 def builtin_specs() -> dict:
     return {p.stem: p for p in sorted(SPEC_DIR.glob("*.toml"))}
 
 
-def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
+def _parse_goal(src, g, i, axes=None):
+    t = Table(src, g, f"goal[{i}].")
+    axis = t.str("axis", choices=tuple(axes)) if axes is not None else None
+    try:
+        goal = G.Goal.from_toml(t)
+    except UnknownNameError as exc:
+        raise ConfigError(str(exc), file=src, field=f"goal[{i}]") from None
+    except ConfigError as exc:
+        if exc.file is None:  # raised by the goal itself: name where it came from
+            raise ConfigError(str(exc), file=src, field=f"goal[{i}]") from None
+        raise
+    t.check_unknown()
+    return axis, goal
+
+
+def _parse_autopilot(top: Table, name, src) -> AutopilotSpec:
+    from rotorlab.autopilots import AUTOPILOTS
+
+    a = top.table("autopilot")
+    ap = a.str("name", choices=tuple(AUTOPILOTS))
+    dt = a.num("dt", lo=MIN_DT_S, hi=1.0)
+    axes = a.strlist("axes", ["roll", "pitch", "yaw"], choices=("roll", "pitch", "yaw"))
+    goals = top.raw("goal", [])
+    if not isinstance(goals, list) or not goals:
+        raise top.error("goal", "a spec needs at least one [[goal]]", expected="[[goal]] tables", got=goals)
+    per_axis = {ax: [] for ax in axes}
+    for i, g in enumerate(goals):
+        axis, goal = _parse_goal(src, g, i, axes)
+        per_axis[axis].append(goal)
+    top.check_unknown()
+    return AutopilotSpec(name=name, autopilot=ap, dt=dt, axes=list(axes), goals=per_axis)
+
+
+def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec | AutopilotSpec:
     """Read a spec from its TOML document, strictly: every key checked, every goal built from its type.
 
     Parameters
     ----------
     data : dict
-        The TOML document as read by ``tomllib``: a ``[cascade]`` table and ``[[goal]]`` entries.
+        The TOML document as read by ``tomllib``: a ``[cascade]`` table (the published cascade's spec,
+        :class:`Spec`) or an ``[autopilot]`` table (an autopilot's own loops, :class:`AutopilotSpec`), and
+        ``[[goal]]`` entries.
     name : str
         The spec's name in reports.
     src : str or Path
@@ -67,7 +119,7 @@ def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
 
     Returns
     -------
-    Spec
+    Spec or AutopilotSpec
 
     Examples
     --------
@@ -79,6 +131,8 @@ def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
     """
     top = Table(src, data)
     top.table("meta", required=False, free=True)
+    if "autopilot" in data:
+        return _parse_autopilot(top, name, src)
     c = top.table("cascade")
     dt = c.num("dt", lo=0.0, hi=10.0)
     if 0 < dt < MIN_DT_S:
@@ -96,18 +150,7 @@ def parse_spec(data: dict, name: str = "spec", src="<spec>") -> Spec:
     goals = top.raw("goal", [])
     if not isinstance(goals, list) or not goals:
         raise top.error("goal", "a spec needs at least one [[goal]]", expected="[[goal]] tables", got=goals)
-    parsed = []
-    for i, g in enumerate(goals):
-        t = Table(src, g, f"goal[{i}].")
-        try:
-            parsed.append(G.Goal.from_toml(t))
-        except UnknownNameError as exc:
-            raise ConfigError(str(exc), file=src, field=f"goal[{i}]") from None
-        except ConfigError as exc:
-            if exc.file is None:  # raised by the goal itself: name where it came from
-                raise ConfigError(str(exc), file=src, field=f"goal[{i}]") from None
-            raise
-        t.check_unknown()
+    parsed = [_parse_goal(src, g, i)[1] for i, g in enumerate(goals)]
     top.check_unknown()
     return Spec(name=name, dt=dt, axis=axis, two_dof=two_dof, tune=list(tune), goals=parsed)
 

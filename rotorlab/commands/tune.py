@@ -1,5 +1,7 @@
 """Tune the attitude cascade (outer PD on the angle, inner PID on the rate) to a specification by structured
-H-inf optimisation, and write the gains TOML that rotorlab run --gains reads.
+H-inf optimisation, and write the gains TOML that rotorlab run --gains reads; or, with --autopilot, tune PX4's or
+ArduPilot's own loops on every axis against the generic multirotor spec derived from the models and write the
+tuned parameters in the autopilot's file format (docs/autopilot-tuning.md).
 
 Prints the tuned gains and every goal of the spec with its value (<= 1 passes), hard or soft, pass or fail.
 Exit status 1 when a hard goal fails. The spec is a TOML file or a shipped name (anteos-p2a2,
@@ -26,19 +28,33 @@ def add_parser(sub):
     p.add_argument("--model", required=True, action="append",
                    help="model JSON (as written by 'rotorlab ident', or {num, den, dt, delay_s}); repeat the "
                         "option to tune on several models at once")
-    p.add_argument("--spec", required=True, help="spec TOML file or built-in name (anteos-p2a2, anteos-a2minib)")
+    p.add_argument("--spec", help="spec TOML file or built-in name (anteos-p2a2, anteos-a2minib); with --autopilot, "
+                                  "an autopilot spec (default: the generic spec derived from the models)")
+    p.add_argument("--autopilot", choices=("px4", "ardupilot"),
+                   help="tune this autopilot's attitude and rate loops; --model [AXIS=]FILE per axis (roll, pitch, "
+                        "yaw; a bare FILE serves every axis of --axes), --out a .params (PX4) or .parm (ArduPilot)")
+    p.add_argument("--params", help="with --autopilot: the parameters flown today (.params/.parm); filters and loop "
+                                    "rate come from them, and they are a baseline (default: the autopilot's defaults)")
+    p.add_argument("--axes", default="roll,pitch,yaw", help="with --autopilot: axes a bare --model FILE serves")
+    p.add_argument("--loop-hz", type=float, help="with --autopilot: loop rate, Hz (default: the parameters' "
+                                                 "IMU_GYRO_RATEMAX / SCHED_LOOP_RATE)")
+    p.add_argument("--spec-out", help="with --autopilot: write the generated spec TOML here")
+    p.add_argument("--match", help="with --autopilot: hold the tuned set to this baseline's robustness (file, "
+                                   "defaults, px4-autotune): its disk margin and gyro noise, not the most robust "
+                                   "baseline's (docs/autopilot-tuning.md)")
     p.add_argument("--start", default="standard",
                    help="start gains: a gains TOML file or a gain-set name of the spec's vehicle")
-    p.add_argument("--out", required=True, help="gains TOML to write; when a hard goal fails nothing is written "
-                                                "there and the gains go to OUT.failed.toml, marked as failing")
-    p.add_argument("--starts", type=bounded_int(MAX_STARTS), default=4,
+    p.add_argument("--out", required=True, help="gains TOML (parameter file with --autopilot) to write; when a hard "
+                                                "goal fails nothing is written there and the result goes to "
+                                                "OUT.failed.toml (.failed.params/.parm), marked as failing")
+    p.add_argument("--starts", type=bounded_int(MAX_STARTS), default=None,
                    help=f"number of starts: the start gains, then random starts; the best is kept (at most "
-                        f"{MAX_STARTS}; default: %(default)s)")
+                        f"{MAX_STARTS}; default 4)")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the random starts")
     p.add_argument("--jobs", type=process_count, default=2,
                    help="processes for the starts (at most twice the CPUs of this machine; default: %(default)s)")
-    p.add_argument("--max-iter", type=bounded_int(MAX_ITER), default=40,
-                   help=f"outer iterations per start (at most {MAX_ITER}; default: %(default)s)")
+    p.add_argument("--max-iter", type=bounded_int(MAX_ITER), default=None,
+                   help=f"outer iterations per start (at most {MAX_ITER}; default 40; 30 per axis with --autopilot)")
     return p
 
 
@@ -66,6 +82,14 @@ def _start_gains(start: str, spec_path):
 
 
 def run(args) -> int:
+    if args.autopilot:
+        from rotorlab.commands._tune_autopilot import run_autopilot
+
+        return run_autopilot(args)
+    if not args.spec:
+        raise CLIError("--spec is required (or --autopilot px4|ardupilot to tune an autopilot's own loops)")
+    args.starts = args.starts or 4
+    args.max_iter = args.max_iter or 40
     from rotorlab import atomic
     from rotorlab.gains import save_gains
     from rotorlab.ident.modelio import load_model

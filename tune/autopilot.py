@@ -1,0 +1,428 @@
+"""Structured H-inf tuning of an autopilot's own attitude and rate loops (PX4, ArduPilot) on all three axes.
+
+The structure tuned is the autopilot's law as it flies, at its loop rate with its filters in the loop: the angle
+P and the rate law of :mod:`rotorlab.autopilots` (``rate_controller_lti(..., fixed_structure=True)``, gyro
+low-pass, D-term or error/derivative filters, yaw's torque low-pass), per axis. The gains tuned are the angle P
+and the rate P, I and D (PX4: ``MC_*_P``, ``MC_*RATE_P/I/D`` with ``MC_*RATE_K = 1``; ArduPilot:
+``ATC_ANG_*_P``, ``ATC_RAT_*_P/I/D``); filter cutoffs and feed-forward stay as the start parameters have them
+(feed-forward shapes set-point tracking only, none of the goals).
+
+The plant of an axis is ``u -> [rate, angle]`` (normalised torque in, rad/s and rad out), discrete at the loop
+period with its input delay. A model at another sample time or with a delay that is not a whole number of loop
+periods is converted exactly: back to continuous time (inverse ZOH), the angle added as the integral of the
+rate, then re-sampled at the loop period by the modified z-transform of a zero-order-held input delayed by a
+fraction of a period (:func:`rotorlab.lti.c2d_zoh_delay`). That is exact at the sample instants, for the input
+an autopilot really applies (held torque), where a Pade or Thiran section approximates the delay of a band-limited
+signal and adds its own phase error near Nyquist; the cost is one state more than the whole-sample shift register.
+
+Goals are those of :mod:`rotorlab.tune.goals` (crossover band, disk margin, rejection, effort) on the cascade's
+generalised plant (:func:`rotorlab.tune.cascade.generalised_plant`; signals ``d_u`` torque disturbance at the
+plant input, ``n_q`` gyro noise, ``theta`` angle, ``u`` plant input, ``u_ctrl`` command), as the generic
+multirotor spec of :mod:`rotorlab.tune.autopilot_spec` derives them from the plant; the engine is the one
+:func:`rotorlab.tune.goals.tune_cascade` runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Mapping
+
+import control as ct
+import numpy as np
+
+from rotorlab import lti
+from rotorlab.autopilots import get as get_autopilot
+from rotorlab.errors import DataError
+from rotorlab.tune import cascade as cas
+from rotorlab.tune import goals as G
+from rotorlab.tune.blocks import Block, Param, Structure
+from rotorlab.tune.hinfstruct import SPEC_SUB_ITER, StartFailure, _Problem, closed_loop, run_starts
+from rotorlab.tune.margins import crossover_frequencies, margins
+
+__all__ = ["AXES", "tuned_names", "axis_plant", "AutopilotAxisBlock", "margins_goal", "analyse_axis",
+           "AxisAnalysis", "tune_axis", "tune_autopilot", "AxisTuneResult", "evaluate_axis", "parallel_gains",
+           "apply_gains", "px4_autotune_params", "disturbance_response"]
+
+AXES = ("roll", "pitch", "yaw")
+
+
+def tuned_names(autopilot, axis: str) -> dict[str, str]:
+    """Role -> parameter name of the gains tuned on ``axis``: ``ANG_P, P, I, D``."""
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    n = ap.axis_names(axis)
+    return {k: n[k] for k in ("ANG_P", "P", "I", "D")}
+
+
+def axis_plant(G, delay_s: float, dt_s: float) -> ct.StateSpace:
+    """``u -> [rate, angle]`` of one axis, discrete at ``dt_s`` with the input delay ``delay_s`` (any value).
+
+    Parameters
+    ----------
+    G : LTI
+        Rate response to the normalised torque (rad/s per unit), continuous or discrete at any sample time, delay
+        removed, strictly proper.
+    delay_s : float
+        Input delay, s; need not be a whole number of ``dt_s`` (exact modified z-transform, see the module).
+    dt_s : float
+        Loop period, s.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> P = axis_plant(ct.tf([50.0], [1.0, 0.0]), 0.0281, 1 / 400)   # 11.24 periods of delay
+    >>> P.noutputs, P.ninputs, P.dt
+    (2, 1, 0.0025)
+    """
+    G = lti.as_ss(G)
+    if G.ninputs != 1 or G.noutputs != 1:
+        raise ValueError(f"the axis model must be SISO torque -> rate, got {G.noutputs}x{G.ninputs}")
+    if lti.is_discrete(G):
+        G = lti.d2c_zoh(G)
+    A, B, C, D = (np.asarray(M, float) for M in (G.A, G.B, G.C, G.D))
+    if np.any(D):
+        raise ValueError("the axis model must be strictly proper (a rate responds to a torque through inertia)")
+    n = A.shape[0]
+    Aa = np.block([[A, np.zeros((n, 1))], [C, np.zeros((1, 1))]])
+    Ba = np.vstack([B, np.zeros((1, 1))])
+    Ca = np.block([[C, np.zeros((1, 1))], [np.zeros((1, n)), np.ones((1, 1))]])
+    return lti.c2d_zoh_delay(ct.ss(Aa, Ba, Ca, np.zeros((2, 1))), dt_s, delay_s)
+
+
+class AutopilotAxisBlock(Block):
+    """One axis of an autopilot's cascade as a tunable block.
+
+    It reads ``[angle_sp, angle, rate_sp, rate]`` (the measurements of
+    :func:`rotorlab.tune.cascade.generalised_plant`) and drives ``[rate_sp_cmd, torque]``: ``rate_sp_cmd =
+    ANG_P (angle_sp - angle)`` and the autopilot's rate law from ``(rate_sp, rate)``. Parameters are the
+    autopilot's names of :func:`tuned_names`; the matrices are affine in them (``fixed_structure`` realisation),
+    so their derivatives are constant and exact.
+    """
+
+    def __init__(self, autopilot, params: Mapping[str, float], axis: str, dt_s: float):
+        ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+        self.ap, self.axis, self._dt_s = ap, axis, float(dt_s)
+        self.roles = tuned_names(ap, axis)
+        base = dict(params)
+        if ap.NAME == "px4":
+            base[ap.axis_names(axis)["K"]] = 1.0  # the tuned P, I, D are PX4's parallel form (K = 1)
+        names = list(self.roles.values())
+        zero = {**base, **{n: 0.0 for n in names}}
+        self._m0 = self._one(zero)
+        self._dm = []
+        for n in names:
+            m1 = self._one({**zero, n: 1.0})
+            self._dm.append(tuple(a - b for a, b in zip(m1, self._m0)))
+        # the realisation must be affine in the gains: a point with every gain set reproduces M0 + sum theta dM
+        probe = {**zero, **{n: 0.3 + 0.1 * i for i, n in enumerate(names)}}
+        want = self._one(probe)
+        got = self._affine([probe[n] for n in names])
+        if not all(np.allclose(a, b, atol=1e-9) for a, b in zip(want, got)):
+            raise ValueError(f"{ap.NAME} {axis}: the fixed-structure law is not affine in {names}")
+        super().__init__(f"{ap.NAME}_{axis}", [Param(n, float(base[n]), lower=0.0) for n in names],
+                         4, 2, self._m0[0].shape[0], dt_s)
+
+    def _one(self, params):
+        C = self.ap.rate_controller_lti(params, self.axis, self._dt_s, fixed_structure=True)
+        Ar, Br, Cr, Dr = (np.asarray(M, float) for M in (C.A, C.B, C.C, C.D))
+        nr = Ar.shape[0]
+        p = float(params[self.roles["ANG_P"]])
+        B = np.hstack([np.zeros((nr, 2)), Br])
+        Cm = np.vstack([np.zeros((1, nr)), Cr])
+        D = np.array([[p, -p, 0.0, 0.0], [0.0, 0.0, Dr[0, 0], Dr[0, 1]]])
+        return Ar, B, Cm, D
+
+    def _affine(self, theta):
+        return tuple(m0 + sum(t * dm[j] for t, dm in zip(theta, self._dm)) for j, m0 in enumerate(self._m0))
+
+    def matrices(self, theta):
+        return self._affine(np.asarray(theta, float))
+
+    def matrix_derivatives(self, theta, idx):
+        return [self._dm[i] for i in idx]
+
+
+
+# ------------------------------------------------------------------------------------------------- goals -------
+def margins_goal(alpha: float, hard: bool = True) -> G.Margins:
+    """The balanced disk-margin floor ``alpha`` at the plant input as a :class:`rotorlab.tune.goals.Margins`
+    goal: the gain and phase margins a disk of size ``alpha`` guarantees, ``GM = (2 + alpha) / (2 - alpha)``,
+    ``PM = 2 atan(alpha / 2)``, both giving ``alpha_req = alpha``."""
+    g = (2.0 + alpha) / (2.0 - alpha)
+    return G.Margins("u", 20.0 * math.log10(g), math.degrees(2.0 * math.atan(alpha / 2.0)), hard=hard)
+
+
+# ---------------------------------------------------------------------------------------------- analysis -------
+@dataclasses.dataclass
+class AxisAnalysis:
+    """Linear analysis of one axis at the loop rate (disturbance ``d_u`` in normalised torque, angle in rad).
+
+    ``dist_peak_rad`` and ``dist_iae_rad_s``: peak and IAE (over ``horizon_s``) of the angle after a unit-step
+    torque disturbance at the plant input (both scale with the step); ``dist_hinf``: peak gain ``|theta / d_u|``;
+    ``disk_alpha``, ``gm_db``, ``pm_deg``: margins with both loops broken at the plant input; ``wc_rad_s``:
+    gain crossovers there; ``noise_gain``: peak ``|u_ctrl / n_q|``; ``stable``."""
+
+    stable: bool
+    dist_peak_rad: float
+    dist_iae_rad_s: float
+    dist_hinf: float
+    disk_alpha: float
+    gm_db: float
+    pm_deg: float
+    wc_rad_s: tuple
+    noise_gain: float
+
+
+def _closed(autopilot, params, axis, Gp, inputs, outputs):
+    blk = AutopilotAxisBlock(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis,
+                 float(Gp.dt))
+    K = blk.ss()
+    return closed_loop(cas.generalised_plant(Gp, (), inputs=inputs, outputs=outputs), cas.N_MEAS, cas.N_CON, K), K
+
+
+def disturbance_response(autopilot, params, axis: str, Gp, horizon_s: float = 2.0) -> np.ndarray:
+    """Angle (rad) after a unit-step torque disturbance at the plant input, samples at the loop period."""
+    T, _ = _closed(autopilot, params, axis, Gp, ("d_u",), ("theta",))
+    n = int(round(horizon_s / float(Gp.dt)))
+    A, B, C, D = (np.asarray(M, float) for M in (T.A, T.B, T.C, T.D))
+    x = np.zeros(A.shape[0])
+    y = np.empty(n)
+    for k in range(n):
+        y[k] = C[0] @ x + D[0, 0]
+        x = A @ x + B[:, 0]
+    return y
+
+
+def analyse_axis(autopilot, params: Mapping[str, float], axis: str, Gp, horizon_s: float = 2.0) -> AxisAnalysis:
+    """:class:`AxisAnalysis` of ``params`` (the autopilot's names and units) around ``Gp`` (:func:`axis_plant`).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab.autopilots import px4
+    >>> Gp = axis_plant(ct.tf([100.0], [1 / 27.0, 1.0, 0.0]), 0.028, 1 / 250)
+    >>> a = analyse_axis("px4", px4.TABLE.defaults(), "pitch", Gp)
+    >>> a.stable, round(a.disk_alpha, 2)
+    (True, 0.49)
+    """
+    dt = float(Gp.dt)
+    T, K = _closed(autopilot, params, axis, Gp, ("d_u", "n_q"), ("theta", "u_ctrl"))
+    if not lti.is_stable(T):
+        return AxisAnalysis(False, math.inf, math.inf, math.inf, 0.0, 0.0, 0.0, (), math.inf)
+    y = disturbance_response(autopilot, params, axis, Gp, horizon_s)
+    dist_hinf = lti.hinfnorm(T[0, 0])[0]
+    noise = lti.hinfnorm(T[1, 1])[0]
+    L = -closed_loop(cas.generalised_plant(Gp, {"u"}, inputs=("d_u",), outputs=("u_ctrl",)), cas.N_MEAS, cas.N_CON, K)
+    w = np.geomspace(1e-2, math.pi / dt * (1 - 1e-10), 800)
+    m = margins(L, w=w)
+    wc = tuple(float(x) for x in crossover_frequencies(L, w=w))
+    return AxisAnalysis(True, float(np.max(np.abs(y))), float(np.sum(np.abs(y)) * dt), float(dist_hinf),
+                        float(m.disk_alpha), float(m.gm_db), float(m.pm_deg), wc, float(noise))
+
+
+# ------------------------------------------------------------------------------------------------ tuning -------
+@dataclasses.dataclass
+class AxisTuneResult:
+    """Tuned gains of one axis (the autopilot's names; PX4's with ``K = 1``), every goal's result
+    (:class:`rotorlab.tune.goals.GoalResult`, value <= 1 meets it), the objective (largest soft goal), the
+    per-start merits and the wall time."""
+
+    axis: str
+    gains: dict
+    report: list
+    objective: float
+    starts: list
+    time_s: float
+
+    @property
+    def passed(self) -> bool:
+        return all(r.passed for r in self.report if r.hard)
+
+
+def parallel_gains(autopilot, params: Mapping[str, float], axis: str) -> dict[str, float]:
+    """The tuned gains of ``axis`` as the tuner's structure holds them: PX4's ``K P, K I, K D`` (the
+    parallel form, ``K = 1``), ArduPilot's as they are; plus the angle P."""
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    roles = tuned_names(ap, axis)
+    k = float(params[ap.axis_names(axis)["K"]]) if ap.NAME == "px4" else 1.0
+    return {n: float(params[n]) * (1.0 if r == "ANG_P" else k) for r, n in roles.items()}
+
+
+def apply_gains(autopilot, params: Mapping[str, float], axis: str, gains: Mapping[str, float]) -> dict:
+    """``params`` with the tuned ``gains`` of ``axis`` in place (PX4: and ``MC_*RATE_K = 1``, the form the gains
+    are tuned in).
+
+    Examples
+    --------
+    >>> from rotorlab.autopilots import px4
+    >>> p = apply_gains("px4", px4.TABLE.defaults(), "roll", {"MC_ROLLRATE_P": 0.2})
+    >>> p["MC_ROLLRATE_P"], p["MC_ROLLRATE_K"]
+    (0.2, 1.0)
+    """
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    p = {**params, **gains}
+    if ap.NAME == "px4":
+        p[ap.axis_names(axis)["K"]] = 1.0
+    return p
+
+
+def evaluate_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals) -> list:
+    """Every goal of ``goals`` (:mod:`rotorlab.tune.goals` objects) for ``params`` around ``Gp``."""
+    dt = float(Gp.dt)
+    blk = AutopilotAxisBlock(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)), axis, dt)
+    S = Structure([blk])
+    th = S.values
+    K = S.ss(th)
+    stable = lti.is_stable(closed_loop(cas.generalised_plant(Gp), cas.N_MEAS, cas.N_CON, K))
+    per_goal = [(g, g.channels(Gp, dt)) for g in goals]
+    chans = [c for _, cs in per_goal for c in cs]
+    out, i = [], 0
+    peaks = _Problem(S, chans, [], np.zeros(len(th), bool), np.ones(0)).all_peaks(th, nmax=3) if stable else []
+    for g, cs in per_goal:
+        if stable:
+            v = max((p[0][0] for p in peaks[i:i + len(cs)]), default=0.0)
+            det = g.detail(Gp, K)
+        else:
+            v, det = math.inf, "closed loop unstable"
+        i += len(cs)
+        out.append(G.GoalResult(g.label, axis, float(v), 1.0, bool(v <= 1.0), g.hard, det))
+    return out
+
+
+def tune_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals, *, starts: int = 1, seed=0,
+              max_iter: int = 30, tol: float = 1e-3, n_jobs: int = 1, executor=None,
+              time_limit_s=None) -> AxisTuneResult:
+    """Tune the angle P and rate P, I, D of one axis on ``Gp`` (:func:`axis_plant`) against ``goals``.
+
+    The engine is the one :func:`rotorlab.tune.goals.tune_cascade` runs (structured H-inf, soft goals minimised,
+    hard goals constrained, stabilisation phase first), with the autopilot's law at the loop rate as the structure.
+    ``params`` gives the start gains and every parameter that is not tuned (filters); a start that does not
+    stabilise the loop is stabilised first. Starts after the first are seeded perturbations of it.
+    """
+    t0 = time.perf_counter()
+    dt = float(Gp.dt)
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    p = apply_gains(ap, params, axis, parallel_gains(ap, params, axis))
+    blk = AutopilotAxisBlock(ap, p, axis, dt)
+    S = Structure([blk])
+    th0 = S.values
+    lower = np.array([max(0.0, ap.TABLE[n].min or 0.0) for n in blk.roles.values()])
+    upper = np.array([_upper(ap, n) for n in blk.roles.values()])
+    th0 = np.clip(th0, lower, upper)
+    channels, poles = [], None
+    for g in goals:
+        channels += g.channels(Gp, dt)
+        if isinstance(g, G.Poles):
+            poles = (g.min_decay, g.min_damping)
+    stab = [(cas.generalised_plant(Gp), cas.N_MEAS, cas.N_CON)]
+    free = np.ones(len(th0), bool)
+    prob = _Problem(S, channels, stab, free, np.maximum(np.abs(th0), 1e-3), poles=poles)
+    results = run_starts(prob, th0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, max_iter=max_iter,
+                         tol=tol, time_limit_s=time_limit_s, spread=0.3, executor=executor,
+                         sub_iter=SPEC_SUB_ITER, sampling=False)
+    best, best_key, per_start = None, None, []
+    for r in results:
+        if isinstance(r, StartFailure):
+            per_start.append(math.inf)
+            continue
+        merit = r[1]
+        per_start.append(float(merit[1]) if merit[0] <= 1e-9 else math.inf)
+        key = (merit[0] > 1e-9, merit[0], merit[1])
+        if best_key is None or key < best_key:
+            best, best_key = r, key
+    if best is None:
+        raise ValueError(f"{ap.NAME} {axis}: no start stabilises the loop; start from parameters that do")
+    gains = dict(zip(blk.roles.values(), map(float, best[0])))
+    rep = evaluate_axis(ap, apply_gains(ap, params, axis, gains), axis, Gp, goals)
+    return AxisTuneResult(axis, gains, rep, G.objective(rep), per_start, time.perf_counter() - t0)
+
+
+def _upper(ap, name):
+    hi = ap.TABLE[name].max
+    return math.inf if hi is None else float(hi)
+
+
+def tune_autopilot(spec, plants: Mapping[str, ct.StateSpace], params: Mapping[str, float], *, starts: int = 1,
+                   seed=0, max_iter: int = 30, n_jobs: int = 1, executor=None) -> dict:
+    """Tune every axis of an :class:`rotorlab.tune.spec.AutopilotSpec` on ``plants`` (axis -> :func:`axis_plant`
+    at ``spec.dt``), starting from and keeping the filters of ``params``. Returns axis -> :class:`AxisTuneResult`.
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab.autopilots import px4
+    >>> from rotorlab.tune.autopilot_spec import generic_spec
+    >>> from rotorlab.tune.spec import parse_spec
+    >>> import tomllib
+    >>> dt = 1 / 250
+    >>> Gp = axis_plant(ct.tf([1 / 0.02], [1 / 27.0, 1.0, 0.0]), 0.026, dt)  # inertia, motor lag, 6.5 periods
+    >>> p = px4.TABLE.defaults()
+    >>> G = ct.tf([1 / 0.02], [1 / 27.0, 1.0, 0.0])
+    >>> spec = parse_spec(tomllib.loads(generic_spec("px4", {"pitch": (Gp, G, 0.026)}, dt, p, {"defaults": p})))
+    >>> res = tune_autopilot(spec, {"pitch": Gp}, p)
+    >>> res["pitch"].passed
+    True
+    """
+    out = {}
+    for axis in spec.axes:
+        if axis not in plants:
+            raise ValueError(f"the spec tunes {axis} but no plant was given for it")
+        Gp = plants[axis]
+        if abs(float(Gp.dt) - spec.dt) > 1e-12:
+            raise ValueError(f"{axis}: the plant's sample time {Gp.dt} s is not the spec's loop period {spec.dt} s")
+        out[axis] = tune_axis(spec.autopilot, params, axis, Gp, spec.goals[axis], starts=starts, seed=seed,
+                              max_iter=max_iter, n_jobs=n_jobs, executor=executor)
+    return out
+
+
+def px4_autotune_params(plants: Mapping[str, ct.StateSpace], params: Mapping[str, float], *, seed=0,
+                        duration_s: float = 20.0, amplitude: float = 0.05,
+                        rise_time_s: float | None = None) -> tuple[dict[str, float], dict[str, str]]:
+    """The parameters PX4 autotune's rule gives on the same plants: the loop closed by ``params`` (PX4 tunes in
+    flight, the old gains flying) is excited by a seeded random-binary torque ``amplitude`` at the plant input,
+    the plant input and the gyro-filtered rate are sampled at the autotune model's period
+    (:func:`rotorlab.autopilots.px4_autotune.model_dt`), the 2-pole ARX model fitted
+    (:func:`~rotorlab.autopilots.px4_autotune.arx221_fit`) and PX4's rule applied
+    (:func:`~rotorlab.autopilots.px4_autotune.autotune_gains`) axis by axis. Returns the parameters of the axes
+    PX4 would accept and, for the others, why its check rejects them (PX4 then keeps the old gains)."""
+    from rotorlab.autopilots import filters, px4, px4_autotune
+
+    rng = np.random.default_rng(seed)
+    models, mdt = {}, None
+    for axis, Gp in plants.items():
+        dt = float(Gp.dt)
+        mdt = px4_autotune.model_dt(float(params["IMU_GYRO_CUTOFF"]), dt)
+        m = int(round(mdt / dt))
+        T, _ = _closed(px4, params, axis, Gp, ("d_u",), ("u", "q"))
+        Fg = filters.butter2_ss(1.0 / dt, float(params["IMU_GYRO_CUTOFF"]))
+        n = int(round(duration_s / dt))
+        d = np.repeat(amplitude * rng.choice([-1.0, 1.0], size=n // m + 1), m)[:n]
+        A, B, C, D = (np.asarray(M, float) for M in (T.A, T.B, T.C, T.D))
+        Af, Bf, Cf, Df = (np.asarray(M, float) for M in (Fg.A, Fg.B, Fg.C, Fg.D))
+        x, xf = np.zeros(A.shape[0]), np.zeros(Af.shape[0])
+        u, y = np.empty(n), np.empty(n)
+        for k in range(n):
+            o = C @ x + D[:, 0] * d[k]
+            u[k], q = o[0], o[1]
+            y[k] = Cf[0] @ xf + Df[0, 0] * q
+            x = A @ x + B[:, 0] * d[k]
+            xf = Af @ xf + Bf[:, 0] * q
+        # PX4 high-passes both signals at 0.5 Hz before its recursive fit (first order, backward Euler)
+        a_hp = 1.0 / (1.0 + 2.0 * math.pi * 0.5 * dt)
+        models[axis] = px4_autotune.arx221_fit(_highpass(u, a_hp)[::m], _highpass(y, a_hp)[::m])
+    kw = {} if rise_time_s is None else {"rise_time_s": rise_time_s}
+    out, rejected = {}, {}
+    for axis, model in models.items():
+        try:
+            out.update(px4_autotune.autotune_gains({axis: model}, mdt, **kw))
+        except DataError as exc:
+            rejected[axis] = str(exc)
+    return out, rejected
+
+
+def _highpass(x, a):
+    y = np.zeros_like(x)
+    for k in range(1, x.size):
+        y[k] = a * (y[k - 1] + x[k] - x[k - 1])
+    return y

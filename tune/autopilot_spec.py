@@ -1,0 +1,188 @@
+"""The generic multirotor spec for an autopilot's loops, derived from the identified plant: a TOML spec with the
+derivation written beside every number, readable by :func:`rotorlab.tune.spec.parse_spec`.
+
+The rule, per axis (``G`` the rate response to normalised torque, ``tau`` its input delay, ``dt`` the loop
+period, ``F`` the autopilot's gyro low-pass at its cutoff):
+
+* crossover band at the plant input: ``wc_max`` is where the loop's lag beyond the rigid body's integrator (delay,
+  zero-order hold, gyro filter and the actuator's lag, the model's fast poles; :func:`crossover_band`) reaches
+  75 deg (a plant phase of -165 deg): the D term's lead at crossover, a few tens of degrees behind the D-term
+  filter, must still leave the 23 deg or more of phase margin a disk margin of 0.4 implies; ``wc_min = wc_max /
+  10`` (yaw's authority, not its phase, sets its crossover, often near the band's low end) (hard);
+* balanced disk margin at the plant input (both loops broken there, Seiler et al. 2020) at least
+  ``max(0.4, the baselines')``: never less robust than what flies today, and never below 0.4 (about 3.5 dB and
+  23 deg at once) (hard);
+* the command's response to gyro noise ``|u_ctrl / n_q|`` (normalised torque per rad/s, peaking at high
+  frequency through the D term) at most ``NOISE_FACTOR`` (2) times the largest of the baselines' that meet the
+  disk floor (all baselines' where none does): a tuned D term may double the command noise of a robust set
+  flown today, not follow a baseline that buys its rejection with a marginally stable loop; ``NOISE_DEFAULT``
+  where no baseline is stable (hard);
+* input-disturbance rejection ``theta / d_u`` (angle, rad, per unit torque disturbance), minimised: its peak
+  gain, and its gain weighted by ``(s + wc_min) / s`` (the low-frequency part that decides how fast a step
+  disturbance is worked off: the IAE), each normalised by the best baseline, so that a value below 1 on both beats
+  every baseline on both (soft).
+
+The baselines are the parameter sets the user has (the log's or file's, the autopilot's defaults, PX4
+autotune's rule on the same model): their margins and noise set the floors, their rejection the yardstick.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from rotorlab import lti
+from rotorlab.autopilots import get as get_autopilot
+from rotorlab.tune import goals as G
+from rotorlab.tune.autopilot import AXES, analyse_axis, evaluate_axis
+
+__all__ = ["PHASE_LIMIT_DEG", "DISK_FLOOR", "BAND_RATIO", "NOISE_FACTOR", "NOISE_DEFAULT", "MATCH_BAND", "crossover_band", "generic_spec"]
+
+PHASE_LIMIT_DEG = -165.0
+DISK_FLOOR = 0.4
+BAND_RATIO = 10.0
+NOISE_FACTOR = 2.0
+# with no stable baseline: 1 normalised torque per rad/s (0.3 deg/s of gyro noise moves the command 0.5 %)
+NOISE_DEFAULT = 1.0
+MATCH_BAND = 1.25
+
+
+def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tuple[float, float]:
+    """``(wc_min, wc_max)`` rad/s of the rule in the module docstring for the rate model ``G`` (torque -> rate,
+    delay removed, continuous or discrete) with input delay ``delay_s``.
+
+    The loop's lag beyond the rigid body's integrator is ``w tau_eff + sum_p arg(1 / (1 - jw / p))``:
+    ``tau_eff = delay + dt/2`` (zero-order hold) ``+ sqrt(2) / (2 pi f_c)`` (the gyro's second-order
+    Butterworth low-pass, its low-frequency group delay), and one term per stable pole ``p`` of ``G`` with
+    ``|p| >= 1 / (10 tau_eff)``: the actuator (motor lag) and faster dynamics, the actuator bandwidth in the
+    model (slower poles are the rigid body's own and its drag, and unstable ones the free vehicle's slow modes,
+    all far below any crossover). ``wc_max`` is where that lag reaches ``-90 - PHASE_LIMIT_DEG`` = 75 deg,
+    ``wc_min = wc_max / BAND_RATIO``.
+    """
+    G = lti.as_ss(G)
+    if lti.is_discrete(G):
+        G = lti.d2c_zoh(G)
+    tau = delay_s + dt_s / 2 + math.sqrt(2.0) / (2 * math.pi * gyro_cutoff_hz)
+    poles = np.linalg.eigvals(np.asarray(G.A, float))
+    fast = poles[(poles.real < 0) & (np.abs(poles) >= 1.0 / (10.0 * tau))]
+    budget = math.radians(-90.0 - PHASE_LIMIT_DEG)
+
+    def lag(w):
+        return w * tau + float(np.sum(-np.angle(1.0 / (1.0 - 1j * w / fast)))) - budget
+
+    hi = math.pi / dt_s
+    if lag(hi) < 0:
+        wmax = hi
+    else:
+        from scipy.optimize import brentq
+
+        wmax = brentq(lag, 1e-6, hi)
+    return wmax / BAND_RATIO, wmax
+
+
+def _poles_text(G, delay_s, dt_s, cutoff):
+    G = lti.as_ss(G)
+    if lti.is_discrete(G):
+        G = lti.d2c_zoh(G)
+    tau = delay_s + dt_s / 2 + math.sqrt(2.0) / (2 * math.pi * cutoff)
+    p = np.linalg.eigvals(np.asarray(G.A, float))
+    p = p[(p.real < 0) & (np.abs(p) >= 1.0 / (10.0 * tau))]
+    return f"(tau_eff {tau * 1e3:.1f} ms; poles " + ", ".join(f"{z:.4g}" for z in p[p.imag >= 0]) + " rad/s)"
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.6g}"
+
+
+def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Mapping[str, float],
+                 baselines: Mapping[str, Mapping[str, float]], *, model: str = "model", match: str | None = None) -> str:
+    """The spec's TOML text for ``plants`` (axis -> ``(Gp, G, delay_s)``: the loop plant of
+    :func:`rotorlab.tune.autopilot.axis_plant`, the rate model it was made from and its delay), with every number's
+    derivation in comments.
+
+    ``params`` are the parameters the tuned set replaces (filters taken from them); ``baselines`` name the sets
+    compared against (e.g. ``{"file": ..., "defaults": ..., "px4-autotune": ...}``), complete parameter dicts.
+
+    ``match`` names one baseline whose robustness the tuned set is held to instead of the most robust one's: its
+    disk margin is the floor (no 0.4 minimum), its gyro-noise gain the bound (no factor), and the band's upper
+    edge is at least ``MATCH_BAND`` times its highest crossover. It answers "what does the structure reach at
+    that baseline's margin", e.g. against PX4 autotune's rule on a vehicle where that rule's margin is small.
+    The disturbance goals stay normalised by the best baseline.
+    """
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    cutoff = float(params["IMU_GYRO_CUTOFF"] if ap.NAME == "px4" else params["INS_GYRO_FILTER"])
+    lines = [
+        f"# Generic multirotor spec for {ap.NAME}'s attitude and rate loops on {model}, generated by",
+        "# rotorlab.tune.autopilot_spec.generic_spec from the identified plant (rules in that module's docstring).",
+        f"# Loop period {_fmt(dt_s)} s ({_fmt(1 / dt_s)} Hz); plants discretised there with their delay exact",
+        "# (modified z-transform of the held torque: a delay that is not a whole number of periods is exact too).",
+        "",
+        "[meta]",
+        f'model = "{model}"',
+        f"baselines = [{', '.join(repr(b).replace(chr(39), chr(34)) for b in baselines)}]",
+        "",
+        "[autopilot]",
+        f'name = "{ap.NAME}"',
+        f"dt = {_fmt(dt_s)}",
+        f"axes = [{', '.join(chr(34) + a + chr(34) for a in plants)}]",
+        "",
+    ]
+    for axis, (Gp, G_rate, delay_s) in plants.items():
+        if axis not in AXES:
+            raise ValueError(f"axis must be one of {AXES}, got {axis!r}")
+        lo, hi = crossover_band(G_rate, delay_s, dt_s, cutoff)
+        an = {b: analyse_axis(ap, p, axis, Gp) for b, p in baselines.items()}
+        ok = {b: a for b, a in an.items() if a.stable}
+        if match is not None:
+            if match not in baselines:
+                raise ValueError(f"match: no baseline {match!r}; baselines are {sorted(baselines)}")
+            if match not in ok:
+                raise ValueError(f"match: the baseline {match!r} is unstable on {axis}")
+            m = ok[match]
+            disk, noise = m.disk_alpha, m.noise_gain
+            hi = max(hi, MATCH_BAND * max(m.wc_rad_s, default=0.0))
+            disk_why = f"{match}'s (match)"
+            noise_why = f"{match}'s gain (match)"
+            band_why = f"; at least {MATCH_BAND:g} x {match}'s highest crossover (match)"
+        else:
+            disk = max([DISK_FLOOR] + [a.disk_alpha for a in ok.values()])
+            robust = ([a.noise_gain for a in ok.values() if a.disk_alpha >= DISK_FLOOR]
+                      or [a.noise_gain for a in ok.values()])
+            noise = NOISE_FACTOR * max(robust) if robust else NOISE_DEFAULT
+            disk_why = f"max({DISK_FLOOR}, baselines')"
+            noise_why = (f"{NOISE_FACTOR:g} x the largest of the baselines' that meet the disk floor {DISK_FLOOR:g}"
+                         if robust else f"{NOISE_DEFAULT:g} (no stable baseline)")
+            band_why = ""
+        hp = G.Rejection("d_u", "theta", G.highpass_max_gain(1, 0.0, lo))
+        lf = {b: evaluate_axis(ap, baselines[b], axis, Gp, [hp])[0].value for b in ok}
+        peak = min((a.dist_hinf for a in ok.values()), default=1.0)
+        lf_best = min(lf.values(), default=1.0)
+        gm = 20 * math.log10((2 + disk) / (2 - disk))
+        pm = math.degrees(2 * math.atan(disk / 2))
+        table = "; ".join(f"{b}: disk {a.disk_alpha:.3f}, noise {a.noise_gain:.4g}, peak {a.dist_hinf:.4g}, "
+                          f"low-frequency {lf[b]:.4g}" if a.stable else f"{b}: unstable" for b, a in an.items())
+        lines += [
+            f"# ---- {axis}: delay {_fmt(delay_s)} s = {_fmt(delay_s / dt_s)} loop periods. Baselines: {table}.",
+            f"# Crossover band: the lag of delay, hold, the {_fmt(cutoff)} Hz gyro filter and the model's actuator "
+            f"(fast) poles {_poles_text(G_rate, delay_s, dt_s, cutoff)} reaches {-90 - PHASE_LIMIT_DEG:g} deg beyond "
+            f"the integrator at wc_max{band_why}: {hi:.4g} rad/s; wc_min = wc_max / {BAND_RATIO:g}.",
+            "[[goal]]", f'axis = "{axis}"', 'type = "crossover"', 'loop = "u"',
+            f"band_rad_s = [{_fmt(lo)}, {_fmt(hi)}]", "",
+            f"# Disk margin at the plant input >= {disk_why} = {disk:.4g}: GM {gm:.4g} dB and PM "
+            f"{pm:.4g} deg at once.",
+            "[[goal]]", f'axis = "{axis}"', 'type = "margins"', 'point = "u"', f"gm_db = {_fmt(gm)}",
+            f"pm_deg = {_fmt(pm)}", "",
+            f"# Gyro noise to command (through P and the D term), normalised torque per rad/s: at most {noise_why}.",
+            "[[goal]]", f'axis = "{axis}"', 'type = "effort"', 'from = "n_q"', 'to = "u_ctrl"',
+            f"max_gain = {_fmt(noise * 1.0001)}", "hard = true", "",
+            "# Input disturbance, minimised: the peak |theta/d_u| (rad per unit torque) over the best baseline's ...",
+            "[[goal]]", f'axis = "{axis}"', 'type = "rejection"', 'from = "d_u"', 'to = "theta"',
+            f"weight = {_fmt(peak)}", "",
+            "# ... and |theta/d_u| weighted by (s + wc_min)/s over the best baseline's (low frequencies: the IAE).",
+            "[[goal]]", f'axis = "{axis}"', 'type = "rejection"', 'from = "d_u"', 'to = "theta"',
+            f'weight = {{ kind = "highpass", order = 1, gain_db = {_fmt(20 * math.log10(lf_best))}, '
+            f"corner_rad_s = {_fmt(lo)} }}", "",
+        ]
+    return "\n".join(lines)
