@@ -4,6 +4,9 @@ H-inf optimisation, and write the gains TOML that rotorlab run --gains reads.
 Prints the tuned gains and every goal of the spec with its value (<= 1 passes), hard or soft, pass or fail.
 Exit status 1 when a hard goal fails. The spec is a TOML file or a shipped name (anteos-p2a2,
 anteos-a2minib); the models are JSON files from rotorlab ident, or hand-written {num, den, dt, delay_s}.
+A model whose units (carried in its file) differ from the spec's (% in, deg/s out) is refused with the factors
+that convert it, or converted with --convert-units; a model without units is taken as in the spec's and the
+run says so (docs/units.md).
 """
 
 from __future__ import annotations
@@ -32,6 +35,10 @@ def add_parser(sub):
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the random starts")
     p.add_argument("--jobs", type=positive_int, default=2, help="processes for the starts")
     p.add_argument("--max-iter", type=positive_int, default=40, help="outer iterations per start")
+    p.add_argument("--convert-units", action="store_true",
+                   help="tune on a model whose input/output units differ from the spec's (e.g. rad/s and a "
+                        "normalised command against deg/s and %%) after scaling it into them; without it such a "
+                        "model is refused with the factors to use (docs/units.md)")
     return p
 
 
@@ -59,10 +66,10 @@ def _start_gains(start: str, spec_path):
 def run(args) -> int:
     from rotorlab import atomic
     from rotorlab.gains import save_gains
-    from rotorlab.ident.modelio import load_model
+    from rotorlab.ident.modelio import load_model, model_io_units
     from rotorlab.tune.cascade import PlantModel
     from rotorlab.tune.goals import format_report, tune_cascade
-    from rotorlab.tune.spec import builtin_specs, load_spec
+    from rotorlab.tune.spec import builtin_specs, load_spec, model_in_spec_units
 
     try:
         atomic.check_writable_dir(Path(args.out).parent, "folder of --out")  # before minutes of tuning
@@ -71,6 +78,9 @@ def run(args) -> int:
         models = []
         for path in args.model:
             sys_, delay_s, meta = load_model(path)
+            sys_, note = model_in_spec_units(sys_, model_io_units(meta, path), spec, path, args.convert_units)
+            if note:
+                print(f"model {path}: {note}")
             models.append(PlantModel(sys_, delay_s, name=Path(path).stem))
         start = _start_gains(args.start, spec_path)
         res = tune_cascade(spec, models, start, starts=args.starts, seed=args.seed, n_jobs=args.jobs,
