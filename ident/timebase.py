@@ -26,7 +26,7 @@ Examples
 --------
 >>> import numpy as np
 >>> t_s, unit = time_in_seconds(np.arange(5) * 4000, "us")
->>> t_s[1], unit
+>>> float(t_s[1]), unit
 (0.004, 'us')
 """
 
