@@ -17,6 +17,8 @@ import pyarrow.parquet as pq
 from rotorlab.errors import DataError
 from rotorlab.logformat import TIME_COLUMN, decode_metadata, write_parquet
 
+from .timebase import time_in_seconds
+
 __all__ = ["Log", "load_log", "write_log", "check_identifiable"]
 
 # a time step further than this fraction from the nominal one is "non-uniform"; more than 1.5 steps is a gap
@@ -46,6 +48,8 @@ class Log:
     units: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
     source: str = "<memory>"
+    #: the unit the file's time column was in (``t`` is always in s; :func:`rotorlab.ident.timebase.time_in_seconds`)
+    time_unit: str = "s"
 
     @property
     def dt(self) -> float:
@@ -89,7 +93,7 @@ class Log:
     def slice(self, start: int, stop: int | None = None) -> Log:
         """Rows ``start:stop`` as a new Log."""
         return Log(self.t[start:stop], {k: v[start:stop] for k, v in self.data.items()}, dict(self.units),
-                   dict(self.meta), f"{self.source}[{start}:{'' if stop is None else stop}]")
+                   dict(self.meta), f"{self.source}[{start}:{'' if stop is None else stop}]", self.time_unit)
 
     def split(self, fraction: float) -> tuple[Log, Log]:
         """First ``fraction`` of the rows and the rest (identification / cross-validation)."""
@@ -141,7 +145,7 @@ def _resample(t: np.ndarray, data: dict) -> tuple[np.ndarray, dict]:
 
 
 def load_log(path, columns: Sequence[str] | None = None, *, column_map: Mapping[str, str] | None = None,
-             units: Mapping[str, str] | None = None, resample: bool = False) -> Log:
+             units: Mapping[str, str] | None = None, resample: bool = False, time_unit: str | None = None) -> Log:
     """Load a Parquet log (rotorlab format) or a CSV file and check it.
 
     Parameters
@@ -157,6 +161,11 @@ def load_log(path, columns: Sequence[str] | None = None, *, column_map: Mapping[
         Units to set or override (CSV files carry none).
     resample : bool
         Interpolate onto a uniform grid at the median step instead of failing on non-uniform stamps.
+    time_unit : str, optional
+        Unit of the file's time column (``s``, ``ms``, ``us``, ``ns``, or ``auto`` to accept the one detected);
+        default: the column's type or the file's units metadata, else seconds where the steps are plausible
+        logging steps in seconds. The rule, and the refusals: :func:`rotorlab.ident.timebase.time_in_seconds`.
+        The loaded ``t`` is always in s (a converted column starts at 0).
 
     Returns
     -------
@@ -225,7 +234,12 @@ def load_log(path, columns: Sequence[str] | None = None, *, column_map: Mapping[
         except (TypeError, ValueError) as exc:
             raise DataError(f"{source}: column '{name}' is not numeric (type {col.type})") from exc
 
-    t = numeric(TIME_COLUMN)
+    t_col = table.column(names[TIME_COLUMN])
+    t_raw = t_col.to_numpy(zero_copy_only=False)
+    if t_raw.dtype.kind not in "iufmM":
+        raise DataError(f"{source}: column '{TIME_COLUMN}' is not numeric (type {t_col.type})")
+    t, t_unit = time_in_seconds(t_raw, time_unit, declared=file_units.get(names[TIME_COLUMN]), source=source,
+                                column=names[TIME_COLUMN])
     data = {c: numeric(c) for c in wanted if c != TIME_COLUMN}
     _check_time(t, source, resample)
     for c, v in data.items():
@@ -234,7 +248,8 @@ def load_log(path, columns: Sequence[str] | None = None, *, column_map: Mapping[
         t, data = _resample(t, data)
     u = {rename.get(k, k): v for k, v in file_units.items()}
     u.update(units or {})
-    return Log(t, data, {k: v for k, v in u.items() if k == TIME_COLUMN or k in data}, meta, source)
+    u[TIME_COLUMN] = "s"
+    return Log(t, data, {k: v for k, v in u.items() if k == TIME_COLUMN or k in data}, meta, source, t_unit)
 
 
 def write_log(path, table_dict: Mapping[str, Sequence[float]], units: Mapping[str, str] | None = None,

@@ -9,7 +9,13 @@ State-space form (written by :func:`save_model`)::
 Hand-written transfer-function form (read by :func:`load_model`), so published models can be tuned
 directly::
 
-    {"num": [12.517, 36.375], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06}
+    {"num": [12.517, 36.375], "den": [1, 5.583, 21.3], "dt": 0, "delay_s": 0.06,
+     "units": {"input": "%", "output": "deg/s"}}
+
+Units: ``units`` maps a signal name (of ``input`` / ``output``; in the transfer-function form the keys
+``input`` and ``output``) to its unit (``rotorlab.units``; conventions in docs/units.md). A model without
+them (files written before units were carried, or from a log that declared none) is read as before;
+:func:`model_io_units` gives None for what it lacks and ``rotorlab tune`` takes that signal as the spec's.
 
 ``dt = 0`` means continuous time. The model is always stored with its delay removed; the delay travels
 next to it in seconds (and in samples for discrete models).
@@ -28,7 +34,7 @@ from rotorlab.config import read_json
 from rotorlab.errors import ConfigError
 from rotorlab.lti import as_ss, dc_gain, is_discrete, s_plane
 
-__all__ = ["FORMAT", "VERSION", "save_model", "load_model", "describe_model"]
+__all__ = ["FORMAT", "VERSION", "save_model", "load_model", "describe_model", "model_io_units"]
 
 FORMAT = "rotorlab-model"
 VERSION = 1
@@ -248,6 +254,27 @@ def load_model(path, whole_samples: bool = True) -> tuple[ct.StateSpace, float, 
             raise ConfigError("delay is not a whole number of samples", file=file, field="delay_s",
                               expected=f"a multiple of dt = {dt}", got=delay_s)
     return sys, delay_s, meta
+
+
+def model_io_units(meta: dict, file="model") -> tuple[str | None, str | None]:
+    """``(input unit, output unit)`` of a SISO model from :func:`load_model`'s ``meta`` (None where the file
+    gives none).
+
+    Raises
+    ------
+    ConfigError
+        ``units`` that is not an object of strings, naming the file and the field.
+    """
+    units = meta.get("units") or {}
+    if not isinstance(units, dict) or not all(isinstance(v, str) for v in units.values()):
+        raise ConfigError("not a map of signal names to units", file=file, field="units",
+                          expected='an object such as {"input": "%", "output": "deg/s"}', got=units)
+    out = []
+    for key in ("input", "output"):
+        names = meta.get(key)
+        name = names[0] if isinstance(names, list) and len(names) == 1 else key
+        out.append(units.get(name, units.get(key)))
+    return out[0], out[1]
 
 
 def _vector(doc, key, file):

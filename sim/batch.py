@@ -47,6 +47,7 @@ from rotorlab.sim.frames import NED_TO_ZUP, RAD2DEG, euler_deg_from_quats
 from rotorlab.sim.runner import BASE_COLUMNS, check_duration, make_flight_software, resolve_gains
 from rotorlab.sim.simulator import DIVERGENCE_WARNINGS, Simulator, diverged_reason, set_rotor_ctrl, set_wind
 from rotorlab.vehicles import DEFAULT_VEHICLE, load_vehicle
+from rotorlab.vehicles.bodies import airframe_inertial
 
 #: scenes the batched runner supports (the rigs: cascade and open-loop modes without position hold)
 SCENES = ("pitch-rig", "roll-rig")
@@ -182,9 +183,12 @@ def _check_setup(name: str, setup: scenarios.Setup) -> None:
                           "run it with rotorlab.sim.runner.run_scenario", field="scenario", got=name)
 
 
-def _variation(vary: dict | None, seeds: np.ndarray, vehicle, mass_kg: float, inertia) -> tuple[dict, dict]:
+def _variation(vary: dict | None, seeds: np.ndarray, vehicle) -> tuple[dict, dict]:
     """Per-simulation parameters from :func:`rotorlab.sim.randomize.draw`, each with a Generator seeded by the
-    simulation's seed alone (so a simulation's parameters do not depend on the batch it runs in)."""
+    simulation's seed alone (so a simulation's parameters do not depend on the batch it runs in). The airframe
+    body's mass and inertia are those the MJCF builder gives the drawn vehicle
+    (:func:`rotorlab.vehicles.bodies.airframe_inertial` of :func:`rotorlab.sim.randomize.apply`): the draw
+    means the same here as in ``rotorlab montecarlo``, and the body is the one the draw kept rigid."""
     vary = dict(vary or {})
     for k in vary:
         if k in randomize.KEYS and k not in VARY_KEYS:
@@ -192,8 +196,9 @@ def _variation(vary: dict | None, seeds: np.ndarray, vehicle, mass_kg: float, in
                               field=f"vary.{k}", expected=f"one of {list(VARY_KEYS)}", got=k)
     draws = [randomize.draw(vehicle, vary, np.random.default_rng([int(s), 0x76617279]), PHYSICS_DT_S, keys=VARY_KEYS,
                             field="vary") for s in seeds]
-    mass = mass_kg * np.array([d.mass_factor for d in draws])
-    inertia = np.asarray(inertia, dtype=float)[None, :] * np.array([d.inertia_factors for d in draws])
+    bodies = [airframe_inertial(randomize.apply(vehicle, d)) for d in draws]
+    mass = np.array([b[0] for b in bodies])
+    inertia = np.array([b[1] for b in bodies]).reshape(len(seeds), 3)
     wind = np.array([d.wind_speed_mps * toward_ned(d.wind_from_deg) for d in draws]).reshape(len(seeds), 3)
     return {"mass_kg": mass, "inertia_kgm2": inertia, "wind_ned_mps": wind}, randomize.check_spreads(vary, VARY_KEYS,
                                                                                                        "vary")
@@ -219,8 +224,9 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
         variation). None: ``0 .. n-1``; an int ``s``: ``s .. s+n-1``.
     vary : dict, optional
         ``{'mass': s, 'inertia': s, 'wind': s_mps}``, drawn as everywhere in rotorlab
-        (:mod:`rotorlab.sim.randomize`): airframe mass and each principal inertia times factors uniform in
-        ``[1 - s, 1 + s]``, a steady horizontal wind of speed uniform in ``[0, s_mps]`` from a uniform direction,
+        (:mod:`rotorlab.sim.randomize`): the vehicle's mass and each principal inertia times factors uniform in
+        ``[1 - s, 1 + s]`` (the airframe body takes them less the IMU board's and rotor discs' share, as the
+        MJCF builder does), a steady horizontal wind of speed uniform in ``[0, s_mps]`` from a uniform direction,
         added to the scenario's.
     duration_s : float, optional
         Run length, s (default the scenario's).
@@ -256,7 +262,7 @@ def run_batch(scenario: str, vehicle=DEFAULT_VEHICLE, n: int = 1, *, gains=None,
     sim = Simulator(scene, v, seed=0, sensor_noise=False, disturbances=setup.disturbances)
     m, d0 = sim.model, sim.data
     airframe = m.body(f"{PREFIX}airframe").id
-    params, vary_d = _variation(vary, seeds, v, float(m.body_mass[airframe]), m.body_inertia[airframe])
+    params, vary_d = _variation(vary, seeds, v)
     row = np.empty(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_INTEGRATION))
     mujoco.mj_getState(m, d0, row, mujoco.mjtState.mjSTATE_INTEGRATION)
     batch = Batch(m, nsim=n, nthread=nthread)

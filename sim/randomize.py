@@ -7,14 +7,21 @@ without a spread, or with spread 0, consumes no random numbers):
 ``mass``
     the airframe mass times a factor uniform in ``[1 - s, 1 + s]`` (``0 <= s < 1``).
 ``inertia``
-    each principal inertia times its own factor uniform in ``[1 - s, 1 + s]``; a draw that breaks the triangle
-    inequality ``A + B >= C`` (no rigid body has it) is redrawn, so the draw is uniform over the feasible box.
+    each principal inertia times its own factor uniform in ``[1 - s, 1 + s]``.
+
+    The mass and inertia draws are kept physical: a (mass, inertia) candidate whose vehicle would have no rigid
+    airframe body (:func:`rotorlab.vehicles.bodies.unphysical`: the whole vehicle's moments less the rotor
+    discs' share breaking ``A + B >= C``, or a mass or moment <= 0) is redrawn, so the draw is uniform over the
+    physical part of the box; :attr:`Draw.rejected_bodies` counts the candidates redrawn.
 ``motor_lag``
     every rotor's servo/motor time constant times one factor uniform in ``[1 - s, 1 + s]``.
 ``delay_s``
     the transport delay, a whole number of physics steps uniform over ``[low, high]`` s (MuJoCo's actuator
     history buffer realises it): a pair ``(low, high)``, or a number ``s`` for ``[delay, delay + s]`` above the
-    vehicle's own delay.
+    vehicle's own delay. Never beyond the vehicle file's bound on a delay
+    (:data:`rotorlab.vehicles.spec.MAX_LAG_DELAY_S`): a step drawn above it is redrawn once, uniform over the
+    steps within the bound (which makes the draw uniform over ``[low, min(high, bound)]``), and
+    :attr:`Draw.rejected_delay` says so.
 ``imu_mount``
     the IMU mount's natural frequency times a factor uniform in ``[1 - s, 1 + s]``.
 ``wind``
@@ -30,13 +37,14 @@ import math
 import numpy as np
 
 from rotorlab.errors import ConfigError, UnknownNameError
+from rotorlab.vehicles.bodies import unphysical
 from rotorlab.vehicles.spec import MAX_LAG_DELAY_S
 
 #: every randomisable parameter, in draw order
 KEYS = ("mass", "inertia", "motor_lag", "delay_s", "imu_mount", "wind")
 _RELATIVE = ("mass", "inertia", "motor_lag", "imu_mount")
-#: a redraw budget for the inertia triangle inequality (spreads below ~0.5 need one or two draws)
-_INERTIA_TRIES = 100
+#: a redraw budget for a rigid airframe body (spreads below ~0.5 need one or two draws)
+_BODY_TRIES = 100
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,6 +58,10 @@ class Draw:
     imu_mount_factor: float = 1.0
     wind_speed_mps: float = 0.0
     wind_from_deg: float = 0.0
+    #: (mass, inertia) candidates redrawn because their airframe body was no rigid body
+    rejected_bodies: int = 0
+    #: 1 when the delay was drawn above the vehicle file's bound and redrawn within it, else 0
+    rejected_delay: int = 0
 
     def as_dict(self) -> dict:
         """Flat numbers for tables (Monte Carlo Parquet rows; their units in :data:`DRAW_UNITS`)."""
@@ -58,13 +70,14 @@ class Draw:
                 "inertia_factor_z": c, "lag_factor": self.lag_factor,
                 "delay_s": math.nan if self.delay_s is None else self.delay_s,
                 "imu_mount_factor": self.imu_mount_factor, "wind_speed_mps": self.wind_speed_mps,
-                "wind_from_deg": self.wind_from_deg}
+                "wind_from_deg": self.wind_from_deg, "rejected_bodies": self.rejected_bodies,
+                "rejected_delay": self.rejected_delay}
 
 
 #: units of :meth:`Draw.as_dict`'s columns
 DRAW_UNITS = {"mass_factor": "1", "inertia_factor_x": "1", "inertia_factor_y": "1", "inertia_factor_z": "1",
               "lag_factor": "1", "delay_s": "s", "imu_mount_factor": "1", "wind_speed_mps": "m/s",
-              "wind_from_deg": "deg"}
+              "wind_from_deg": "deg", "rejected_bodies": "1", "rejected_delay": "1"}
 
 
 def check_spreads(spreads: dict, keys=KEYS, field: str = "randomize") -> dict:
@@ -106,27 +119,36 @@ def draw(vehicle, spreads: dict, rng: np.random.Generator, physics_dt_s: float, 
         s = sp.get(name, 0.0)
         return float(rng.uniform(1.0 - s, 1.0 + s)) if s else 1.0
 
-    mass = factor("mass")
-    for _ in range(_INERTIA_TRIES):
+    rejected_bodies = 0
+    while True:
+        mass = factor("mass")
         inertia = tuple(factor("inertia") for _ in range(3))
-        a, b, c = sorted(j * f for j, f in zip(vehicle.inertia_kgm2, inertia))
-        if a + b >= c:
+        if (mass, inertia) == (1.0, (1.0, 1.0, 1.0)) or not unphysical(apply(vehicle, Draw(mass, inertia))):
             break
-    else:
-        raise ConfigError(field=f"{field}.inertia", expected="a spread that keeps A + B >= C", got=sp["inertia"])
+        rejected_bodies += 1
+        if rejected_bodies == _BODY_TRIES:
+            raise ConfigError(field=f"{field}.inertia", expected="spreads that leave a rigid airframe body "
+                              f"(A + B >= C) within {_BODY_TRIES} draws",
+                              got={k: sp[k] for k in ("mass", "inertia") if k in sp})
     lag = factor("motor_lag")
     delay = None
+    rejected_delay = 0
     if "delay_s" in sp:
         s = sp["delay_s"]
         d0 = max(vehicle.rotor.delay_s)
         lo, hi = s if isinstance(s, tuple) else (d0, d0 + s)
-        delay = int(rng.integers(round(lo / physics_dt_s), round(hi / physics_dt_s) + 1)) * physics_dt_s
+        k_lo, k_hi = round(lo / physics_dt_s), round(hi / physics_dt_s)
+        k_max = min(k_hi, math.floor(MAX_LAG_DELAY_S / physics_dt_s + 1e-9))
+        k = int(rng.integers(k_lo, k_hi + 1))
+        if k > k_max:
+            k, rejected_delay = int(rng.integers(k_lo, k_max + 1)), 1
+        delay = k * physics_dt_s
     imu_mount = factor("imu_mount")
     speed = from_deg = 0.0
     if sp.get("wind"):
         speed = float(rng.uniform(0.0, sp["wind"]))
         from_deg = float(rng.uniform(0.0, 360.0))
-    return Draw(mass, inertia, lag, delay, imu_mount, speed, from_deg)
+    return Draw(mass, inertia, lag, delay, imu_mount, speed, from_deg, rejected_bodies, rejected_delay)
 
 
 def apply(vehicle, d: Draw):

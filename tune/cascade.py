@@ -31,7 +31,7 @@ from rotorlab.tune.hinfstruct import closed_loop
 
 __all__ = ["PlantModel", "plant_model", "cascade_plant", "generalised_plant", "cascade_structure",
            "gains_to_theta", "theta_to_gains", "closed_cascade", "control_sensitivity_cascade", "rate_angle_plant",
-           "trapezoid", "cascade_mc", "tuhh_loop_controller", "INPUTS", "OUTPUTS", "LOOP_POINTS", "PARAM_NAMES", "N_MEAS", "N_CON",
+           "trapezoid", "cascade_mc", "tuhh_loop_controller", "INPUTS", "OUTPUTS", "LOOP_POINTS", "PARAM_NAMES", "PLANT_UNITS", "N_MEAS", "N_CON",
            "DT_S"]
 
 DT_S = 0.02  # published flight-software rate (50 Hz) of both ANTEOS vehicles and TUHH: the default design rate
@@ -49,13 +49,18 @@ SENSITIVITY = {"u": ("d_u", "u"), "q": ("n_q", "q_meas"), "theta": ("n", "theta_
 # the cascade controller of :func:`cascade_structure` reads N_MEAS measurements (theta_ref, theta_meas, q_ref,
 # q_meas) and drives N_CON controls (q_ref_c, u_c): the partition of :func:`generalised_plant` for closed_loop
 N_MEAS, N_CON = 4, 2
+#: (input, output) units of the plant the cascade is tuned on: command in %, body rate in deg/s
+PLANT_UNITS = ("%", "deg/s")
 PARAM_NAMES = ("outer.kp", "outer.kd", "outer.tf", "outer.b", "outer.c",
                "inner.kp", "inner.ki", "inner.kd", "inner.tf", "inner.b", "inner.c")
 
 
 @dataclasses.dataclass
 class PlantModel:
-    """Rate response ``G: u [%] -> q [deg/s]`` (continuous or discrete, delay removed) plus its input delay."""
+    """Rate response ``G: u [%] -> q [deg/s]`` (continuous or discrete, delay removed) plus its input delay.
+
+    The units are the flight software's, in which the cascade's gains are written (:data:`PLANT_UNITS`); a model
+    in other units is converted before it gets here (:func:`rotorlab.tune.spec.unit_conversion`)."""
 
     G: object
     delay_s: float = 0.0

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from rotorlab.errors import ConfigError, UnknownNameError
 
+from .bodies import unphysical
 from .spec import G0, RHO_AIR, RigSpec, RotorSpec, VehicleSpec, load_vehicle_file, parse_vehicle
 
 VEHICLES_DIR = Path(__file__).resolve().parent
@@ -47,8 +48,21 @@ def vehicle_provenance(v: VehicleSpec) -> dict:
 
 
 def load_vehicle(name_or_path, physics_dt_s: float | None = None) -> VehicleSpec:
-    """Load a shipped vehicle by name, or a vehicle TOML by path."""
-    return load_vehicle_file(vehicle_path(name_or_path), physics_dt_s)
+    """Load a shipped vehicle by name, or a vehicle TOML by path.
+
+    Raises
+    ------
+    rotorlab.errors.ConfigError
+        Besides the file's own checks: an airframe body that is no rigid body once the IMU board and the rotor
+        discs come off the whole vehicle's mass and inertia (:func:`rotorlab.vehicles.bodies.unphysical`).
+    """
+    v = load_vehicle_file(vehicle_path(name_or_path), physics_dt_s)
+    bad = unphysical(v)
+    if bad:
+        raise ConfigError(bad[1], file=v.path, field=bad[0], expected="a whole-vehicle mass and inertia that leave the "
+                          "airframe body (less the IMU board and the rotor discs) a rigid body",
+                          got=list(v.inertia_kgm2) if bad[0].endswith("inertia_kgm2") else v.mass_kg)
+    return v
 
 
 def gains_dir(vehicle) -> Path:

@@ -26,7 +26,7 @@ import math
 import mujoco
 import numpy as np
 
-from .rotor_theory import hover
+from .bodies import airframe_inertial, hub_inertia
 from .spec import VehicleSpec, check_delay_steps, check_rate_steps
 
 ROTOR_ACTUATORS = ("thrust", "inflow", "hx", "hy")
@@ -71,15 +71,12 @@ def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
 
     frame = s.worldbody.add_body(name="airframe")
     pos = v.rotor_positions()
-    hub = _hub_inertia(v)
+    hub = hub_inertia(v)
     disc_mass = hub[0] if hub else 0.0
-    frame.mass = v.mass_kg - v.imu.mass_kg - disc_mass * v.n_rotors
-    # the TOML inertia is the whole vehicle's: the rotor discs' share (parallel axis plus their own) comes off
-    disc_inertia = np.zeros(3)
-    if hub:
-        for p in pos:
-            disc_inertia += disc_mass * (p @ p - p**2) + np.array([hub[1], hub[1], hub[2]])
-    frame.inertia = list(np.asarray(v.inertia_kgm2) - disc_inertia)
+    # the TOML mass and inertia are the whole vehicle's: the IMU board's and rotor discs' share comes off
+    mass_kg, inertia_kgm2 = airframe_inertial(v)
+    frame.mass = mass_kg
+    frame.inertia = list(inertia_kgm2)
     # the vehicle's CG (airframe + IMU board + rotor discs) is the airframe origin, which the rigs put on the pivot
     moment = v.imu.mass_kg * np.asarray(v.imu.offset_m) + disc_mass * pos.sum(axis=0)
     frame.ipos = list(-moment / frame.mass)
@@ -132,20 +129,6 @@ def build_vehicle_spec(v: VehicleSpec, physics_dt_s: float) -> mujoco.MjSpec:
         if hub:
             _add_hub(s, frame, v, i, pos[i - 1], hub)
     return s
-
-
-def _hub_inertia(v: VehicleSpec):
-    """(blade mass of one rotor kg, disc tilt inertia kg m^2, spin-axis inertia kg m^2), or None for a rigid rotor.
-
-    Uniform blades: ``I_b = m_b R^2 / 3`` with ``I_b = rho a c R^4 / gamma`` (the Lock number's definition); the
-    disc of N blades has the tilt inertia ``(N/2) I_b`` about any diameter and ``N I_b`` about the shaft.
-    """
-    r = v.rotor
-    if r.hub_stiffness_Nm_per_rad <= 0.0:
-        return None
-
-    i_b = hover(v).blade_flap_inertia_kgm2
-    return r.blades * 3.0 * i_b / r.radius_m**2, r.blades / 2.0 * i_b, r.blades * i_b
 
 
 def _add_hub(s: mujoco.MjSpec, frame, v: VehicleSpec, i: int, p, hub) -> None:

@@ -6,7 +6,10 @@ cross-validation data. Methods (rotorlab.ident.methods, the table the pipeline u
 past-input instruments), pbsid (predictor-based, for closed-loop data), lms-kung (LMS impulse response + Kung
 realisation), oe-greybox (output-error grey-box fit of --structure) and hinf-match (H-inf matching of
 --structure to a PI-MOESP model). The LOG is a rotorlab Parquet log or a CSV file with a
-header row; --column-map renames CSV columns, --resample interpolates uneven time stamps.
+header row; --column-map renames CSV columns, --resample interpolates uneven time stamps. The time column is
+read in seconds, or in the unit its type, the Parquet units metadata or --time-unit gives; a column whose steps
+are not plausible seconds is refused (docs/units.md). The model file carries the units of its input and output
+(from the Parquet metadata or --units) for rotorlab tune to check.
 
 A flight log (PX4 .ulg, a ulog2csv folder, ArduPilot .bin/.log) is identified per axis instead: the closed loop
 (rate set-point -> rate), the plant (rate-loop output -> rate) and the plant through the autopilot's controller,
@@ -49,6 +52,14 @@ def add_parser(sub):
                    help="grey-box structure for oe-greybox / hinf-match (rate-tf: K(s+z)/(s^2+as+b))")
     p.add_argument("--column-map", action="append", default=[], metavar="OURS=FILE",
                    help="use the file's column FILE as OURS, e.g. t=time or q=pitch_rate (repeatable, or comma-separated)")
+    p.add_argument("--time-unit", default=None, choices=("s", "ms", "us", "ns", "auto"),
+                   help="unit of the log's time column (default: the column's type or the Parquet units metadata, "
+                        "else seconds where the steps are plausible in seconds and a refusal naming the units that "
+                        "fit where they are not; auto: take the one unit that fits); see docs/units.md")
+    p.add_argument("--units", action="append", default=[], metavar="COLUMN=UNIT",
+                   help="unit of a column, e.g. q=deg/s or u=%% (repeatable, or comma-separated; overrides the "
+                        "Parquet units metadata); the model file carries its input and output units and rotorlab "
+                        "tune checks them against the spec's (docs/units.md)")
     p.add_argument("--resample", action="store_true",
                    help="interpolate onto a uniform grid at the median time step instead of refusing uneven time stamps")
     cv = p.add_mutually_exclusive_group()
@@ -71,6 +82,19 @@ def parse_column_map(items) -> dict:
         if not sep or not ours.strip() or not theirs.strip():
             raise CLIError(f"--column-map expects OURS=FILE_COLUMN (e.g. t=time), got '{item}'")
         out[ours.strip()] = theirs.strip()
+    return out
+
+
+def parse_units(items) -> dict:
+    """``["q=deg/s", "u=%,y=rad"]`` -> ``{"q": "deg/s", "u": "%", "y": "rad"}``."""
+    out = {}
+    for item in (x.strip() for it in items for x in it.split(",")):
+        if not item:
+            continue
+        col, sep, unit = item.partition("=")
+        if not sep or not col.strip() or not unit.strip():
+            raise CLIError(f"--units expects COLUMN=UNIT (e.g. q=deg/s), got '{item}'")
+        out[col.strip()] = unit.strip()
     return out
 
 
@@ -129,11 +153,19 @@ def run(args) -> int:
     u_cols = [c.strip() for c in args.input.split(",") if c.strip()]
     y_cols = [c.strip() for c in args.output.split(",") if c.strip()]
     cmap = parse_column_map(args.column_map)
+    col_units = parse_units(args.units)
+    unknown = sorted(set(col_units) - set(u_cols + y_cols))
+    if unknown:
+        raise CLIError(f"--units names column(s) {unknown} that are neither --input nor --output; expected one of "
+                       f"{', '.join(u_cols + y_cols)}")
     try:
-        log = load_log(args.log, columns=u_cols + y_cols, column_map=cmap, resample=args.resample)
+        log = load_log(args.log, columns=u_cols + y_cols, column_map=cmap, resample=args.resample,
+                       units=col_units, time_unit=args.time_unit)
+        if log.time_unit != "s":
+            print(f"time column of {args.log} read in {log.time_unit}: dt = {log.dt:.6g} s")
         if args.cv_log:
             id_log, cv_log = log, load_log(args.cv_log, columns=u_cols + y_cols, column_map=cmap,
-                                           resample=args.resample)
+                                           resample=args.resample, units=col_units, time_unit=args.time_unit)
             if abs(cv_log.dt - log.dt) > 1e-9 * log.dt:
                 raise CLIError(f"--cv-log {args.cv_log} has dt = {cv_log.dt} s, the log {log.dt} s")
         elif args.cv_split is not None:
@@ -180,6 +212,11 @@ def run(args) -> int:
     except (DataError, ConfigError, ValueError) as exc:
         raise CLIError(str(exc)) from exc
     units = {c: log.units[c] for c in u_cols + y_cols if c in log.units}
+    missing = [c for c in u_cols + y_cols if c not in units]
+    if missing:
+        print(f"no unit for {', '.join(missing)} (the log declares none): the model carries none for "
+              f"{'it' if len(missing) == 1 else 'them'}, and rotorlab tune takes a signal without a unit as the "
+              "spec's; give them with --units COLUMN=UNIT (docs/units.md)")
     from rotorlab.ident.modelio import describe_model
 
     print("\n".join(describe_model(disc.sys, delay * dt, units, u_cols, y_cols)))

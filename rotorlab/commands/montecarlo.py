@@ -5,9 +5,12 @@ not depend on the executor or the batch size. --vary takes NAME or NAME=SPREAD i
 and the batched runner (rotorlab.sim.randomize): the mass and each principal inertia are scaled by factors
 uniform in [1 - SPREAD, 1 + SPREAD] (default 0.1), delay is a whole number of physics steps uniform in
 [delay, delay + SPREAD] s (default 0.02 s), wind sets a mean wind uniform in [0, SPREAD] m/s (default 5; gust,
-hover and prbs-flight only). Writes one Parquet of metrics per batch (batch-0000.parquet, ...) and summary.json
-(mean, std and 5/50/95 % quantiles of every metric, the fraction of runs that stopped early), and prints the
-statistics of the scenario's key metrics.
+hover and prbs-flight only). Every drawn vehicle is physical: a mass/inertia draw whose airframe body would
+break A + B >= C is redrawn, and a delay drawn above the vehicle file's bound (1 s) is redrawn within it; the
+redraws are counted and reported apart from the flight outcomes. Writes one Parquet of metrics per batch
+(batch-0000.parquet, ...) and summary.json (mean, std and 5/50/95 % quantiles of every metric, the fraction of
+the flown runs that stopped early, the redrawn draws, the runs that failed to build or run, which are not flight
+outcomes and make the exit status 1), and prints the statistics of the scenario's key metrics.
 """
 
 from __future__ import annotations
@@ -122,9 +125,9 @@ def run_sample(task: dict) -> dict:
     try:
         r = run_scenario(task["scenario"], spec, gains=task["gains"], seed=params["run_seed"],
                          duration_s=task["duration_s"], options=opts)
-        row = {**flatten_metrics(r.metrics), "stopped": r.stopped or ""}
-    except Exception as exc:  # a diverging or refused sample is a result, not a crash
-        row = {"stopped": f"{type(exc).__name__}: {exc}"}
+        row = {**flatten_metrics(r.metrics), "stopped": r.stopped or "", "error": ""}
+    except Exception as exc:  # a sample that could not be built or flown is reported, apart from flight outcomes
+        row = {"stopped": "", "error": f"{type(exc).__name__}: {exc}"}
     return {"sample": task["i"], **params, **row}
 
 
@@ -148,6 +151,7 @@ def run(args) -> int:
         if args.duration is not None:  # before any run: every sample would fail alike in its worker
             check_duration(args.duration, v.control_dt_s)
         gains = resolve_gains(v, args.gains)
+        draw(v, vary, np.random.SeedSequence(args.seed))  # spreads no vehicle can take: refused before any run
         out = atomic.check_output(args.out or f"runs/montecarlo-{args.scenario}-{v.name}-seed{args.seed}",
                                   flag="--out", what="folder")
         ex = get_executor(args.executor, args.workers)
@@ -166,9 +170,16 @@ def run(args) -> int:
                           {k: u for k, u in {**SAMPLE_UNITS, **randomize.DRAW_UNITS}.items() if k in keys},
                           {"scenario": args.scenario, "vehicle": v.name, "gains": gains.name, "seed": args.seed})
             rows += batch
+    flown = [r for r in rows if not r["error"]]
+    errors = [r for r in rows if r["error"]]
     summary = {"scenario": args.scenario, "vehicle": v.name, "gains": gains.name, "n": args.n, "seed": args.seed,
                "vary": vary,
-               "fraction_stopped": float(np.mean([bool(r["stopped"]) for r in rows])),
+               "fraction_stopped": float(np.mean([bool(r["stopped"]) for r in flown])) if flown else None,
+               "n_flown": len(flown),
+               "errors": {"n": len(errors), "first": errors[0]["error"] if errors else None},
+               "redrawn": {"bodies_samples": sum(r.get("rejected_bodies", 0) > 0 for r in rows),
+                           "bodies_candidates": sum(r.get("rejected_bodies", 0) for r in rows),
+                           "delay_samples": sum(r.get("rejected_delay", 0) for r in rows)},
                "metrics": {}}
     for k in sorted(set().union(*rows)):
         vals = np.array([r[k] for r in rows if isinstance(r.get(k), float)], float)
@@ -179,16 +190,28 @@ def run(args) -> int:
     atomic.write_json(out / "summary.json", summary)
     print("\n".join(statistics_lines(summary)))
     print(f"wrote {out} (summary.json, batch-*.parquet)")
-    return 0
+    return 1 if errors else 0
 
 
 def statistics_lines(summary: dict, max_rows: int = 12) -> list[str]:
     """The Monte Carlo statistics of the scenario's key metrics, one line each with its unit."""
     from rotorlab.keymetrics import fmt, key_rows, lookup
+    from rotorlab.vehicles.spec import MAX_LAG_DELAY_S
 
     vary = ", ".join(f"{k} {v:g} {VARY_UNITS[k]}" for k, v in summary["vary"].items()) or "nothing"
+    n_flown = summary.get("n_flown", summary["n"])
     L = [f"{summary['n']} runs of {summary['scenario']} on {summary['vehicle']}, gains {summary['gains']}, "
-         f"seed {summary['seed']}; varied: {vary}; stopped early: {100 * summary['fraction_stopped']:.1f} %"]
+         f"seed {summary['seed']}; varied: {vary}; stopped early: "
+         + (f"{100 * summary['fraction_stopped']:.1f} % of {n_flown} flown" if n_flown else "none flown")]
+    red = summary.get("redrawn", {})
+    if red.get("bodies_samples") or red.get("delay_samples"):
+        L.append(f"  draws kept physical: {red['bodies_samples']} sample(s) redrew mass/inertia "
+                 f"({red['bodies_candidates']} candidate(s) without a rigid airframe body), "
+                 f"{red['delay_samples']} redrew a delay above {MAX_LAG_DELAY_S:g} s (the vehicle file's bound)")
+    err = summary.get("errors", {})
+    if err.get("n"):
+        L.append(f"  {err['n']} run(s) failed before or outside the flight and are not in the statistics; "
+                 f"first: {err['first']}")
     stats = summary["metrics"]
     means = {k: v["mean"] for k, v in stats.items()}
     rows = key_rows(summary["scenario"], means, rest=False) or key_rows(summary["scenario"], means)[:max_rows]

@@ -6,6 +6,9 @@ tuned parameters in the autopilot's file format (docs/autopilot-tuning.md).
 Prints the tuned gains and every goal of the spec with its value (<= 1 passes), hard or soft, pass or fail.
 Exit status 1 when a hard goal fails. The spec is a TOML file or a shipped name (anteos-p2a2,
 anteos-a2minib); the models are JSON files from rotorlab ident, or hand-written {num, den, dt, delay_s}.
+A model whose units (carried in its file) differ from the spec's (% in, deg/s out) is refused with the factors
+that convert it, or converted with --convert-units; a model without units is taken as in the spec's and the
+run says so (docs/units.md).
 """
 
 from __future__ import annotations
@@ -55,6 +58,10 @@ def add_parser(sub):
                    help="processes for the starts (at most twice the CPUs of this machine; default: %(default)s)")
     p.add_argument("--max-iter", type=bounded_int(MAX_ITER), default=None,
                    help=f"outer iterations per start (at most {MAX_ITER}; default 40; 30 per axis with --autopilot)")
+    p.add_argument("--convert-units", action="store_true",
+                   help="tune on a model whose input/output units differ from the spec's (e.g. rad/s and a "
+                        "normalised command against deg/s and %%) after scaling it into them; without it such a "
+                        "model is refused with the factors to use (docs/units.md)")
     return p
 
 
@@ -92,10 +99,10 @@ def run(args) -> int:
     args.max_iter = args.max_iter or 40
     from rotorlab import atomic
     from rotorlab.gains import save_gains
-    from rotorlab.ident.modelio import load_model
+    from rotorlab.ident.modelio import load_model, model_io_units
     from rotorlab.tune.cascade import PlantModel
     from rotorlab.tune.goals import format_report, tune_cascade
-    from rotorlab.tune.spec import builtin_specs, load_spec
+    from rotorlab.tune.spec import builtin_specs, load_spec, model_in_spec_units
 
     try:
         atomic.check_output(args.out, args.model)  # before minutes of tuning
@@ -104,6 +111,9 @@ def run(args) -> int:
         models = []
         for path in args.model:
             sys_, delay_s, meta = load_model(path)
+            sys_, note = model_in_spec_units(sys_, model_io_units(meta, path), spec, path, args.convert_units)
+            if note:
+                print(f"model {path}: {note}")
             models.append(PlantModel(sys_, delay_s, name=Path(path).stem))
         start = _start_gains(args.start, spec_path)
         # every input is recorded now (models, spec, start gains): neither output may replace one
