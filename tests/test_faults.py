@@ -352,9 +352,11 @@ def test_pipeline_default_out_for_a_vehicle_path(tmp_path, capsys, monkeypatch):
 # -- item 12: Ctrl-C and the gym API ---------------------------------------------------------------------
 def _interrupt(cmd, wait_for, timeout=120, settle_s=0.5):
     """Start ``cmd`` in its own process group, send SIGINT to the group (a terminal's Ctrl-C) once
-    ``wait_for()`` holds, and return the finished process."""
+    ``wait_for()`` holds, and return the finished process. The child starts with SIGINT's default action, as
+    from a terminal: a suite run from a background job inherits SIGINT ignored, and Python then never raises
+    KeyboardInterrupt."""
     p = subprocess.Popen(cmd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
+                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     t0 = time.perf_counter()
     while not wait_for() and time.perf_counter() - t0 < timeout:
         time.sleep(0.1)
