@@ -129,7 +129,13 @@ class AutopilotController:
         sets it together with :attr:`FlightSoftware.attitude_by_plugin
         <rotorlab.sim.control.flight_software.FlightSoftware.attitude_by_plugin>`: with the cascade off those
         commands are the command excitation alone, which then reaches the mixer as PX4's torque injection does.
+    flies_rate_loop : bool
+        True: the rate set-points it returns (``p_ref``, ``q_ref``, ``r_ref``) are the ones its rate loop flew,
+        so the flight software logs them in place of its own (any other plug-in returning a flight-software
+        signal is refused).
     """
+
+    flies_rate_loop = True
 
     def __init__(self, spec: AutopilotSpec, dt_s: float, u_limit_pct: float = math.inf,
                  yaw_u_limit_pct: float = math.inf, rate_reference: Callable | None = None):

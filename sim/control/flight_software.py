@@ -55,6 +55,8 @@ from rotorlab.sim.control.vector import VectorAttitudeController, VectorSupervis
 MODES = ("cascade", "open-loop", "position")
 SETPOINTS = ("phi_ref", "theta_ref", "psi_ref", "x_ref", "y_ref", "z_ref")
 COMMANDS = ("u_col", "u_lat", "u_lon", "u_yaw")
+#: the rate set-points, which a plug-in flying its own rate loop (``flies_rate_loop``) sets
+RATE_REFS = ("p_ref", "q_ref", "r_ref")
 AXES = ("roll", "pitch", "yaw")
 _AXIS_CMD = {"roll": "u_lat", "pitch": "u_lon", "yaw": "u_yaw"}
 
@@ -356,7 +358,8 @@ class FlightSoftware:
                 out = pl.step(t, sig)
                 if out:
                     for name in out:
-                        if name not in own:
+                        # an autopilot's rate set-points are the ones its rate loop flew (flies_rate_loop)
+                        if name not in own and not (name in RATE_REFS and getattr(pl, "flies_rate_loop", False)):
                             self._claim(pl, name, sig)
                     sig.update(out)
             u_col, u_lat, u_lon, u_yaw = sig["u_col"], sig["u_lat"], sig["u_lon"], sig["u_yaw"]
