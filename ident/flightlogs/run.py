@@ -17,7 +17,7 @@ from .identify import AxisModel, identify_direct, identify_plant_indirect
 from .names import AXES
 from .windows import select_windows
 
-__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller"]
+__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "controller_params"]
 
 
 @dataclass
@@ -31,10 +31,28 @@ class FlightLogResult:
     notes: list = field(default_factory=list)
 
 
+def controller_params(log: FlightLog):
+    """The log's parameters with the names of older firmware mapped onto the current laws' names
+    (:func:`rotorlab.autopilots.legacy.upgrade`), and the list of what was mapped or filled (``Mapped``);
+    ``(log.params, [])`` where ``rotorlab.autopilots`` is not installed.
+
+    Examples
+    --------
+    >>> params, mapped = controller_params(read_flight_log("old.BIN"))  # doctest: +SKIP
+    >>> [m.text() for m in mapped]  # doctest: +SKIP
+    """
+    if importlib.util.find_spec("rotorlab.autopilots") is None:
+        return dict(log.params), []
+    from rotorlab.autopilots import legacy
+
+    return legacy.upgrade(log.autopilot, log.params)
+
+
 def autopilot_controller(log: FlightLog, axis: str):
     """The autopilot's rate controller of ``axis`` from the log's parameters, as a python-control LTI system at the
     loop rate, from ``rotorlab.autopilots`` (``get(autopilot).rate_controller_lti``); ``None`` where that package
-    is not installed. The logged rate has been through the gyro filter already (``gyro_filter=False``).
+    is not installed. The logged rate has been through the gyro filter already (``gyro_filter=False``). Parameters
+    of older firmware are mapped first (:func:`controller_params`).
 
     Raises
     ------
@@ -46,8 +64,9 @@ def autopilot_controller(log: FlightLog, axis: str):
     from rotorlab import autopilots
 
     ap = autopilots.get(log.autopilot)
+    params, _ = controller_params(log)
     try:
-        return ap.rate_controller_lti(log.params, axis, 1.0 / ap.loop_hz(log.params), gyro_filter=False)
+        return ap.rate_controller_lti(params, axis, 1.0 / ap.loop_hz(params), gyro_filter=False)
     except KeyError as exc:
         raise DataError(f"{log.path}: parameter {exc.args[0]} is not in the log; the {log.autopilot} rate "
                         f"controller of the {axis} axis needs it for the plant through the known controller") from None
@@ -100,6 +119,8 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
     res = FlightLogResult(log)
     strict = axes is not None
     axes = list(axes) if strict else [a for a in AXES if a in log.axes]
+    mapped = controller_params(log)[1] if controller is not None else []
+    res.notes += [f"controller parameter {m.text()}" for m in mapped]
     missing = [a for a in axes if a not in log.axes]
     if missing:
         raise DataError(f"{log.path}: no rate set-point and measured rate for {', '.join(missing)}; the log has "
@@ -130,6 +151,7 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
         if C is not None:
             try:
                 models["plant-indirect"] = identify_plant_indirect(rec, split_cl, C)
+                models["plant-indirect"].extra["controller_params_mapped"] = [m.text() for m in mapped]
             except (DataError, ValueError) as exc:
                 res.notes.append(f"{axis}: no plant through the controller: {exc}")
         else:
@@ -156,6 +178,8 @@ def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
              "windows": [[w.start_s, w.stop_s, w.reason] for w in m.split.ident],
              "holdout": [[w.start_s, w.stop_s] for w in m.split.holdout],
              "vaf_holdout": m.vaf_holdout, "tried": [[t, None if np.isnan(v) else v] for t, v in m.tried],
-             **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {})}
+             **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {}),
+             **({"controller_params_mapped": m.extra["controller_params_mapped"]}
+                if "controller_params_mapped" in m.extra else {})}
     return save_model(path, m.model, vaf=[m.vaf_holdout], extra=extra, input=[m.input], output=[m.output],
                       units=dict(m.units))
