@@ -2,7 +2,7 @@
 
 Every :class:`Window` carries the reason it was chosen, for the log report. The held-out part (the last
 ``holdout`` fraction of the candidate time: the autopilot's excitation windows when it logged any, else the
-airborne time) is never searched for identification windows, so a model's VAF on it is an honest prediction.
+airborne time less :data:`GROUND_GUARD_S` at each end) is never searched for identification windows, so a model's VAF on it is an honest prediction.
 """
 
 from __future__ import annotations
@@ -16,11 +16,15 @@ from rotorlab.errors import DataError
 
 from .flightlog import FlightLog, Interval, Record
 
-__all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats", "MIN_RMS"]
+__all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats", "MIN_RMS", "GROUND_GUARD_S"]
 
 # The least excitation an input must carry in the band (RMS, its unit): 0.05 rad/s (3 deg/s) of rate set-point is
 # above what a hovering attitude loop commands from sensor noise and well below a pilot's stick input.
 MIN_RMS = {"rate_sp": 0.05}
+# Seconds cut from each end of an airborne interval: take-off and touchdown are ground contact, not the flying
+# plant, and the thrust threshold and land detectors that bound the interval lag them. On the real development logs
+# the last second before a thrust-threshold landing holds the touchdown (gyro RMS 3x the set-point's).
+GROUND_GUARD_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -87,14 +91,17 @@ def _candidates(log: FlightLog, rec: Record) -> tuple[list, str]:
         how = log.airborne_source or "no land detector, thrust or armed signal in the log"
         raise DataError(f"{log.path}: no airborne time found ({how}); expected a flight, got a log on the ground")
     air = _clip(log.airborne, rec.t_s[0], rec.t_s[-1] + rec.dt)
-    if not air:
-        raise DataError(f"{log.path}: the {rec.axis} signals do not overlap the airborne time "
-                        f"({', '.join(f'{i.start_s:.1f}-{i.stop_s:.1f} s' for i in log.airborne)})")
+    # the guard applies to the airborne time only: an autopilot excites only once flying
+    guarded = [Interval(i.start_s + GROUND_GUARD_S, i.stop_s - GROUND_GUARD_S, i.label) for i in air
+               if i.duration_s > 2 * GROUND_GUARD_S]
+    if not guarded:
+        raise DataError(f"{log.path}: the {rec.axis} signals do not overlap the airborne time by more than "
+                        f"{2 * GROUND_GUARD_S:g} s ({', '.join(f'{i.start_s:.1f}-{i.stop_s:.1f} s' for i in log.airborne)})")
     exc = [i for i in log.excitation if i.label == rec.axis]
     exc_air = [j for i in exc for j in _clip(air, i.start_s, i.stop_s)]
     if exc_air:
         return exc_air, "autopilot excitation window (airborne)"
-    return air, "airborne"
+    return guarded, f"airborne (less {GROUND_GUARD_S:g} s of take-off and touchdown)"
 
 
 def _same_interval(intervals, t0, t1) -> bool:
