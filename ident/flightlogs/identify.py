@@ -19,7 +19,7 @@ from rotorlab.errors import DataError
 from rotorlab.lti import as_ss, is_discrete
 
 from ..delay import estimate_delay
-from ..greybox import GreyBoxModel, Param, _closed_loop, oe_fit_closed_loop, simulate_closed_loop
+from ..greybox import GreyBoxModel, Param, _closed_loop, lift_interpolated, oe_fit_closed_loop, simulate_closed_loop
 from ..methods import METHODS
 from ..metrics import simulate, vaf
 from ..model import IdentifiedModel
@@ -27,7 +27,7 @@ from .flightlog import Record
 from .windows import Split
 
 __all__ = ["AxisModel", "CANDIDATES", "FALLBACK", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
-           "controller_at", "holdout_prediction", "window_runs"]
+           "controller_at", "loop_substeps", "holdout_prediction", "window_runs"]
 
 # (method, settings) tried by the direct fits, per kind. Orders 2-4 cover a rate loop (integrator, motor lag,
 # filters). The plant is seen in closed loop, where only PBSID (predictor-based) is consistent: past-input
@@ -304,6 +304,26 @@ def _d2c_tustin(sysd: ct.StateSpace) -> ct.StateSpace:
     return ct.ss((2.0 / T) * (A - np.eye(A.shape[0])) @ M, (2.0 / T) * M @ B, 2.0 * C @ M, D - C @ M @ B)
 
 
+def loop_substeps(controller, dt: float) -> int:
+    """Loop ticks per log sample: ``round(dt / controller.dt)`` for a discrete controller whose loop runs at least
+    1.5 times faster than the log is sampled, else 1.
+
+    At the log's rate a 400 Hz law with 20 Hz filters, moved to a 25 Hz log (Nyquist 12.5 Hz), is no longer the
+    law that flew; simulated at its own rate between the log's samples it is.
+
+    Examples
+    --------
+    >>> loop_substeps(ct.ss([], [], [], [[1.0]], 1 / 400), 1 / 24)
+    17
+    >>> loop_substeps(ct.ss([], [], [], [[1.0]], 1 / 400), 1 / 300)
+    1
+    """
+    K = as_ss(controller)
+    if not is_discrete(K) or K.dt is True or float(K.dt) * 1.5 > dt:
+        return 1
+    return max(1, int(round(dt / float(K.dt))))
+
+
 def controller_at(controller, dt: float) -> ct.StateSpace:
     """The controller as a discrete system at ``dt``: as is when its sample time is ``dt``; a continuous one by
     Tustin; a discrete one at another rate (the autopilot's loop rate above the log's) through the continuous
@@ -331,10 +351,12 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
     and ArduPilot form with derivative on the measurement and feed-forward) or ``rate_out = C (rate_sp - rate)``
     (one input) is simulated with the plant ``structure`` (default :func:`rate_plant_structure`) and the plant
     parameters fitted to the measured rate (``oe_fit_closed_loop``, initial state estimated) on the longest
-    identification window, the controller moved to the log's rate (:func:`controller_at`: a log written slower
-    than the loop does not hold the set-point's changes between its samples, so the loop cannot be simulated
-    more faithfully at its own rate). The fitted plant is closed again with the controller and scored on the held-out
-    windows; ``model`` is the discretised plant.
+    identification window. A log written at least 1.5 times slower than a discrete controller's loop is
+    simulated at the loop rate between its samples (:func:`loop_substeps` steps per sample, the set-point
+    interpolated linearly, the rate compared at the log's samples:
+    :func:`rotorlab.ident.greybox.lift_interpolated`); otherwise the controller is moved to the log's rate
+    (:func:`controller_at`). The fitted plant is closed again with the controller the same way and scored on
+    the held-out windows; ``model`` is the discretised plant.
 
     Parameters
     ----------
@@ -352,7 +374,8 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
     >>> res.extra["params"]  # doctest: +SKIP
     """
     structure = structure or rate_plant_structure()
-    K = controller_at(controller_lti, rec.dt)
+    sub = loop_substeps(controller_lti, rec.dt)
+    K = controller_at(controller_lti, rec.dt / sub)
     runs = window_runs(rec, split.ident, MIN_SAMPLES)
     if not runs:
         raise DataError(f"the {rec.axis} axis has no identification window of at least {MIN_SAMPLES} samples")
@@ -366,16 +389,19 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
         grid = structure.param("K").value * np.logspace(-2, 2, 17)
         costs = []
         for kk in grid:
-            ys = simulate_closed_loop(structure, K, r, rec.dt, {**structure.values(), "K": float(kk)})
+            ys = simulate_closed_loop(structure, K, r, rec.dt, {**structure.values(), "K": float(kk)}, substeps=sub)
             with np.errstate(over="ignore", invalid="ignore"):  # a gain that destabilises the loop diverges
                 e = y - (ys[:, 0] - ys[:, 0].mean())
                 cost = float(np.mean(e * e))
             costs.append(cost if np.isfinite(cost) else np.inf)
         theta0 = {"K": float(grid[int(np.argmin(costs))])}
-    res = oe_fit_closed_loop(structure, K, r, y, rec.dt, theta0, estimate_x0=True, cov="white", rng=rng)
+    res = oe_fit_closed_loop(structure, K, r, y, rec.dt, theta0, estimate_x0=True, cov="white", rng=rng,
+                             substeps=sub)
     plant_d = res.discrete()
-    cl = IdentifiedModel(sys=_closed_loop(as_ss(plant_d.with_delay()), K, 0), method="closed-loop-through-controller")
+    plant_f = res.model.discretize(rec.dt / sub)
+    cl = IdentifiedModel(sys=lift_interpolated(_closed_loop(plant_f, K, 0), sub),
+                         method="closed-loop-through-controller", settings={"substeps": sub})
     v, pred = holdout_prediction(cl, rec, "rate_sp", "rate", split.holdout)
     return AxisModel(rec.axis, "plant-indirect", plant_d, "rate_out", "rate", {"rate_out": "1", "rate": "rad/s"},
                      rec.dt, split, v, [], pred, {"params": dict(res.params), "closed_loop": cl,
-                                                  "fit_vaf": float(np.ravel(res.fit_vaf)[0])})
+                                                  "fit_vaf": float(np.ravel(res.fit_vaf)[0]), "substeps": sub})
