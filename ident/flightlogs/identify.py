@@ -1,7 +1,7 @@
 """Per-axis identification from a flight log: the plant (rate-loop output -> rate), the closed loop (rate
 set-point -> rate), and the plant recovered through the known controller (indirect route).
 
-The direct fits use the project's methods (:data:`rotorlab.ident.methods.METHODS`) and ARX: a few orders and methods
+The direct fits use the project's methods (:data:`rotorlab.ident.methods.METHODS`): a few orders and methods
 are fitted on the longest identification window and the one that predicts the other identification data best
 is kept (never the held-out data, which only scores the result). The indirect fit takes the controller as a
 python-control LTI system, so the autopilot's law (``rotorlab.autopilots``) plugs in from outside:
@@ -40,8 +40,8 @@ CANDIDATES = {
         ("pi-moesp", {"order": 4, "horizon": 20}),
         ("pbsid", {"order": 2, "past": 20, "future": 10}),
         ("pbsid", {"order": 4, "past": 20, "future": 10}),
-        ("arx", {"na": 2, "nb": 2}),
-        ("arx", {"na": 4, "nb": 4}),
+        ("arx", {"order": 2}),
+        ("arx", {"order": 4}),
     ),
     "plant": (
         ("pbsid", {"order": 2, "past": 40, "future": 20}),
@@ -146,41 +146,7 @@ def holdout_prediction(model, rec: Record, u_name: str, y_name: str, windows) ->
     return v, pred
 
 
-def fit_arx(u, y, *, dt: float, delay: int, na: int, nb: int) -> IdentifiedModel:
-    """ARX ``A(q) y = B(q) u(k - delay) + e`` by linear least squares, as a state-space IdentifiedModel.
-
-    ``B`` starts at lag 0 (``delay = 0``: a direct term, what a closed loop sampled slower than it runs shows),
-    ``delay`` shifts it. Written here because python-control and scipy fit no ARX; it is the baseline the
-    issue's figures were measured with, kept among the candidates so the choice is never worse than it on the
-    data it is scored on.
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> u = rng.standard_normal(500)
-    >>> y = np.zeros(500)
-    >>> for k in range(1, 500):
-    ...     y[k] = 0.9 * y[k - 1] + 0.5 * u[k - 1]
-    >>> m = fit_arx(u, y, dt=0.01, delay=1, na=1, nb=1)
-    >>> float(np.round(m.sys.A[0, 0], 6))
-    0.9
-    """
-    u, y = np.asarray(u, float).ravel(), np.asarray(y, float).ravel()
-    n0 = max(na, nb - 1 + delay)
-    N = len(y)
-    if N - n0 < 4 * (na + nb):
-        raise DataError(f"ARX({na},{nb}) needs at least {n0 + 4 * (na + nb)} samples; got {N}")
-    cols = [-y[n0 - i:N - i] for i in range(1, na + 1)] + [u[n0 - delay - j:N - delay - j] for j in range(nb)]
-    theta = np.linalg.lstsq(np.column_stack(cols), y[n0:], rcond=None)[0]
-    a = np.r_[1.0, theta[:na]]
-    b = np.r_[theta[na:], np.zeros(max(0, na + 1 - nb))]
-    sys = ct.ss(ct.tf(b[:max(na + 1, nb)], np.r_[a, np.zeros(max(0, nb - na - 1))], dt))
-    return IdentifiedModel(sys=sys, delay=delay, method="arx", settings={"na": na, "nb": nb})
-
-
 def _fit(name, u, y, dt, delay, settings):
-    if name == "arx":
-        return fit_arx(u, y, dt=dt, delay=delay, **settings)
     return METHODS[name].fit(u, y, dt=dt, delay=delay, **settings)
 
 
