@@ -26,7 +26,7 @@ from ..model import IdentifiedModel
 from .flightlog import Record
 from .windows import Split
 
-__all__ = ["AxisModel", "CANDIDATES", "FALLBACK", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
+__all__ = ["AxisModel", "CANDIDATES", "FALLBACK", "MAX_FIT_SAMPLES", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
            "controller_at", "loop_substeps", "holdout_prediction", "window_runs"]
 
 # (method, settings) tried by the direct fits, per kind. Orders 2-4 cover a rate loop (integrator, motor lag,
@@ -58,6 +58,10 @@ FALLBACK = {
     ),
 }
 MIN_SAMPLES = 100
+# Samples a candidate is fitted on (and scored on, and twice this for the refit): 20 s at 250 Hz is hundreds of
+# rate-loop time constants, and the cost of the fits grows with the data while the model stops improving; a long
+# log's further windows add time, not information (the held-out score always uses every held-out window)
+MAX_FIT_SAMPLES = 5000
 # a closed rate loop is stable; a plant may integrate (rate from torque), so one pole may sit on the unit circle
 MAX_POLE_RADIUS = {"closed-loop": 1.0 - 1e-9, "plant": 1.0 + 1e-4}
 KINDS = {"closed-loop": ("rate_sp", "rate"), "plant": ("rate_out", "rate")}
@@ -109,6 +113,18 @@ def window_runs(rec: Record, windows, min_samples: int = 50) -> list[np.ndarray]
         idx = np.flatnonzero((rec.t_s >= w.start_s) & (rec.t_s < w.stop_s))
         if len(idx) >= min_samples:
             out.append(idx)
+    return out
+
+
+def _capped(runs, n: int) -> list:
+    """The first runs (whole, the last one cut) holding at most ``n`` samples together; runs under
+    ``MIN_SAMPLES`` left after the cut are dropped."""
+    out, left = [], n
+    for r in runs:
+        if left < MIN_SAMPLES:
+            break
+        out.append(r[:left])
+        left -= len(out[-1])
     return out
 
 
@@ -185,8 +201,9 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
                         f"({MIN_SAMPLES * rec.dt:.3g} s at {1 / rec.dt:.4g} Hz)")
     runs.sort(key=len, reverse=True)
     main = runs[0]
-    k = int(0.75 * len(main))
-    fit_idx, inner = main[:k], [main[k:]] + runs[1:]
+    k = min(int(0.75 * len(main)), MAX_FIT_SAMPLES)
+    fit_idx, inner = main[:k], _capped([main[k:]] + runs[1:], MAX_FIT_SAMPLES)
+    runs = _capped(runs, 2 * MAX_FIT_SAMPLES)
     uf, yf = _centred(u, fit_idx), _centred(y, fit_idx)
     delay = _delay(uf, yf)
     tried, best = [], None
@@ -345,7 +362,7 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
     runs = window_runs(rec, split.ident, MIN_SAMPLES)
     if not runs:
         raise DataError(f"the {rec.axis} axis has no identification window of at least {MIN_SAMPLES} samples")
-    main = max(runs, key=len)
+    main = max(runs, key=len)[:MAX_FIT_SAMPLES]
     r, y = rec.data["rate_sp"][main], rec.data["rate"][main]
     r, y = r - r.mean(), y - y.mean()
     # a coarse scan of the gain first: the closed-loop cost is far from convex in K (too high a gain makes the
