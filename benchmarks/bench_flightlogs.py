@@ -10,25 +10,33 @@ rate set-point, filtered rate and torque set-point at 1 kHz, land detector, stat
 ``K/(s (tau s + 1))`` flown by PX4's rate law (``rotorlab.autopilots.px4`` at its defaults and 1 kHz) from a
 pilot-like set-point (low-passed noise), with gyro noise.
 
+One BLAS thread (set below before numpy loads, as bench_ident.py does): the fits' matrices are small, and on a
+shared machine OpenBLAS threads spinning against each other count as CPU time (5x the single-thread figure).
+
 Usage: ``python benchmarks/bench_flightlogs.py [minutes] [repeats] [--profile]``
 """
 
-import cProfile
-import pstats
-import statistics
-import sys
-import tempfile
-import time
-from pathlib import Path
+import os
 
-import control as ct
-import numpy as np
-from pyulog import ULog
-from scipy import signal as sig
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from rotorlab.autopilots import px4
-from rotorlab.ident.flightlogs.run import identify_flight_log
-from rotorlab.ident.flightlogs.writers import write_ulog
+import cProfile  # noqa: E402
+import pstats  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import control as ct  # noqa: E402
+import numpy as np  # noqa: E402
+from pyulog import ULog  # noqa: E402
+from scipy import signal as sig  # noqa: E402
+
+from rotorlab.autopilots import px4  # noqa: E402
+from rotorlab.ident.flightlogs.run import identify_flight_log  # noqa: E402
+from rotorlab.ident.flightlogs.writers import write_ulog  # noqa: E402
 
 LOOP_HZ = 1000.0
 PLANTS = {"roll": (400.0, 0.03), "pitch": (350.0, 0.035), "yaw": (60.0, 0.08)}
