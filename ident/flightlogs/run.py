@@ -131,9 +131,11 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
         raise DataError(f"{log.path}: no rate set-point and measured rate for {', '.join(missing)}; the log has "
                         f"{', '.join(log.axes) or 'none'}")
     for axis in axes:
-        names = ("rate_sp", "rate") + (("rate_out",) if "rate_out" in log.signals[axis] else ())
-        rec = log.record(axis, names, rate_hz=rate_hz or min(MAX_IDENT_HZ, min(log.series(axis, n).rate_hz
-                                                                              for n in names)))
+        # each model on the signals it needs at their own rate: a slow rate-loop output (PX4 2016 logged
+        # actuator_controls_0 at half the set-point's rate) must not slow the closed loop's record down
+        has_out = "rate_out" in log.signals[axis]
+        rec = _record(log, axis, ("rate_sp", "rate"), rate_hz)
+        recs = {"closed-loop": rec, "plant-indirect": rec}
         models = {}
         try:
             split_cl = select_windows(log, rec, "rate_sp", "rate", holdout=holdout, override=windows)
@@ -143,12 +145,13 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
                 raise
             res.notes.append(f"{axis}: not identified: {exc}")
             continue
-        if "rate_out" in names:
+        if has_out:
             # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
             # does not excite enough is a note, not the end of the run
             try:
-                split_p = select_windows(log, rec, "rate_out", "rate", holdout=holdout, override=windows)
-                models["plant"] = identify_direct(rec, split_p, "plant")
+                recs["plant"] = _record(log, axis, ("rate_out", "rate"), rate_hz)
+                split_p = select_windows(log, recs["plant"], "rate_out", "rate", holdout=holdout, override=windows)
+                models["plant"] = identify_direct(recs["plant"], split_p, "plant")
             except DataError as exc:
                 res.notes.append(f"{axis}: no direct plant model: {exc}")
         else:
@@ -164,9 +167,9 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
             res.notes.append(f"{axis}: plant through the known controller skipped (rotorlab.autopilots not installed)")
         res.models[axis] = models
         for kind, m in models.items():
-            res.files.append(_save(save_model, out / f"{axis}-{kind}.json", m, log, rec))
-        main = models.get("plant-indirect") or models.get("plant") or models["closed-loop"]
-        res.files.append(_save(save_model, out / f"{axis}.json", main, log, rec))
+            res.files.append(_save(save_model, out / f"{axis}-{kind}.json", m, log, recs[kind]))
+        main = next(k for k in ("plant-indirect", "plant", "closed-loop") if k in models)
+        res.files.append(_save(save_model, out / f"{axis}.json", models[main], log, recs[main]))
     if not res.models:
         raise DataError(f"{log.path}: no axis could be identified: " + "; ".join(res.notes))
     if report:
@@ -174,6 +177,12 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
 
         res.files += write_report(res, out)
     return res
+
+
+def _record(log: FlightLog, axis: str, names, rate_hz):
+    if rate_hz is None:
+        rate_hz = min(MAX_IDENT_HZ, min(log.series(axis, n).rate_hz for n in names))
+    return log.record(axis, names, rate_hz=rate_hz)
 
 
 def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
