@@ -171,7 +171,8 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
         main = next(k for k in ("plant-indirect", "plant", "closed-loop") if k in models)
         res.files.append(_save(save_model, out / f"{axis}.json", models[main], log, recs[main]))
     if not res.models:
-        raise DataError(f"{log.path}: no axis could be identified: " + "; ".join(res.notes))
+        why = [n for n in res.notes if not n.startswith("controller parameter ")]
+        raise DataError(f"{log.path}: no axis could be identified: " + "; ".join(why))
     if report:
         from .report import write_report
 

@@ -133,7 +133,7 @@ def _px4_rules():
                         _PX4_OLD))
         out.append(Rule("px4", f"MC_{short}_INT_LIM", None, 0.3, False, "PX4 before MC_*_INT_LIM (2016)",
                         "the integrator limit was the constant RATES_I_LIMIT = 0.3", _PX4_OLD))
-    b_imu = "PX4 before the IMU_* gyro parameters (v1.11, 2020)"
+    b_imu = "PX4 before the IMU_* gyro parameters (2018-2020)"
     out += [
         Rule("px4", "IMU_DGYRO_CUTOFF", "MC_DTERM_CUTOFF", None, True, b_imu,
              "MC_DTERM_CUTOFF low-passed the rate before differencing: the same LTI D-term filter",
@@ -144,7 +144,7 @@ def _px4_rules():
              "the gyro was filtered in its driver; the logged rate is the filtered one", _PX4_OLD),
         Rule("px4", "IMU_GYRO_RATEMAX", None, 250.0, False, b_imu,
              "the controller ran once per attitude update, 250 Hz on Pixhawk-class boards", _PX4_OLD),
-        Rule("px4", "MC_YAW_TQ_CUTOFF", None, 0.0, False, "PX4 before MC_YAW_TQ_CUTOFF (2020)",
+        Rule("px4", "MC_YAW_TQ_CUTOFF", None, 0.0, False, "PX4 before MC_YAW_TQ_CUTOFF (absent up to v1.15-dev)",
              "no low-pass on the yaw torque", _PX4_OLD),
     ]
     return out
