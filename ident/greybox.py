@@ -40,6 +40,7 @@ __all__ = [
     "GreyBoxModel",
     "GreyBoxResult",
     "oe_fit",
+    "lift_interpolated",
     "oe_fit_closed_loop",
     "periodic_average",
     "simulate_greybox",
@@ -424,9 +425,42 @@ def _closed_loop(plant_d: ct.StateSpace, K: ct.StateSpace, feedback_output) -> c
     return ct.ss(A, B, C, D, plant_d.dt)
 
 
+def lift_interpolated(sys_fast: ct.StateSpace, substeps: int) -> ct.StateSpace:
+    """The discrete system at ``substeps`` times ``sys_fast``'s sample time that runs ``sys_fast`` ``substeps``
+    times per sample on the input interpolated linearly between samples, output taken at the samples.
+
+    A loop that runs faster than it was logged (an autopilot at 400 Hz, its log at 25 Hz) seen at the log's
+    samples: over one slow sample ``x[k+1] = Phi x[k] + G0 u[k] + G1 u[k+1]`` with ``Phi = A^n``,
+    ``G0 = sum_j A^(n-1-j) B (1 - j/n)``, ``G1 = sum_j A^(n-1-j) B j/n``; the state ``xi = x - G1 u`` makes it
+    causal: ``xi[k+1] = Phi xi[k] + (Phi G1 + G0) u[k]``, ``y[k] = C xi[k] + (C G1 + D) u[k]`` (first-order
+    hold, as ``c2d(..., "foh")`` is for a continuous system). ``substeps = 1`` returns ``sys_fast``.
+
+    Examples
+    --------
+    >>> fast = ct.ss([[0.9]], [[0.1]], [[1.0]], [[0.0]], 0.01)
+    >>> slow = lift_interpolated(fast, 4)
+    >>> float(slow.dt), round(float(ct.dcgain(slow)), 12)
+    (0.04, 1.0)
+    """
+    n = int(substeps)
+    if n == 1:
+        return sys_fast
+    A, B, C, D = (np.asarray(M, float) for M in (sys_fast.A, sys_fast.B, sys_fast.C, sys_fast.D))
+    G0, G1 = np.zeros_like(B), np.zeros_like(B)
+    P = np.eye(A.shape[0])  # A^(n-1-j), j from n-1 down to 0
+    for j in range(n - 1, -1, -1):
+        G0 += P @ B * (1.0 - j / n)
+        G1 += P @ B * (j / n)
+        P = A @ P
+    Phi = P
+    return ct.ss(Phi, Phi @ G1 + G0, C, C @ G1 + D, float(sys_fast.dt) * n)
+
+
 def simulate_closed_loop(model: GreyBoxModel, controller, r, dt: float,
-                         theta: Mapping[str, float] | None = None, feedback_output: int = 0) -> np.ndarray:
-    """Closed-loop plant outputs ``(N, p)`` for reference samples ``r`` (loop at rest at the start).
+                         theta: Mapping[str, float] | None = None, feedback_output: int = 0,
+                         substeps: int = 1) -> np.ndarray:
+    """Closed-loop plant outputs ``(N, p)`` for reference samples ``r`` (loop at rest at the start); with
+    ``substeps`` the loop runs at ``dt / substeps`` on ``r`` interpolated linearly (:func:`lift_interpolated`).
 
     Parameters
     ----------
@@ -442,6 +476,8 @@ def simulate_closed_loop(model: GreyBoxModel, controller, r, dt: float,
         Parameter values (default: the model's).
     feedback_output : int
         The plant output fed back.
+    substeps : int
+        Loop steps per sample of ``r`` (a loop faster than its log: an autopilot at 400 Hz logged at 25 Hz).
 
     Returns
     -------
@@ -458,8 +494,9 @@ def simulate_closed_loop(model: GreyBoxModel, controller, r, dt: float,
     >>> round(float(y[-1, 0]), 4)
     0.6667
     """
-    cl = _closed_loop(model.discretize(dt, theta), _controller_d(controller, dt), feedback_output)
-    return _lsim(cl, as_columns(r, "r"))
+    dtf = dt / substeps
+    cl = _closed_loop(model.discretize(dtf, theta), _controller_d(controller, dtf), feedback_output)
+    return _lsim(lift_interpolated(cl, substeps), as_columns(r, "r"))
 
 
 # -- fitting -----------------------------------------------------------------------------------------
@@ -660,7 +697,7 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
                        theta0: Mapping[str, float] | None = None, *, feedback_output: int = 0,
                        estimate_x0: bool = False, restarts: int = 0, rng=None, max_nfev: int | None = None,
                        cov: str = "hac", progress: bool = False, periods: int = 0,
-                       replicates=None, reweight: bool = True) -> GreyBoxResult:
+                       replicates=None, reweight: bool = True, substeps: int = 1) -> GreyBoxResult:
     """Indirect closed-loop output-error fit: the plant is estimated through the known closed loop.
 
     The loop ``u = C (r - y_fb)`` (or ``u = C [r; y_fb]`` for a two-input controller such as
@@ -690,6 +727,10 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
         measured and simulated outputs each with its mean removed (constant sensor biases and trims are not
         part of the structure). ``periods`` must let the start-up transient die out.
 
+    substeps : int
+        The loop runs ``substeps`` times per data sample (a log written slower than the loop runs): the
+        controller is at ``dt / substeps``, the reference is interpolated linearly between its samples and the
+        outputs are compared at the samples (:func:`lift_interpolated`). Not with ``periods``.
     cov : {'hac', 'white', 'periods'}
         Default ``'hac'``: the residual of an indirect closed-loop fit is the measurement noise filtered
         by the sensitivity function, so it is coloured and ``sigma^2 (J^T J)^-1`` would understate the
@@ -733,7 +774,10 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
         raise ValueError("closed-loop fit takes one reference signal")
     if len(r2) != len(y2):
         raise ValueError(f"r has {len(r2)} samples, y has {len(y2)}")
-    K = _controller_d(controller, dt)
+    substeps = int(substeps)
+    if substeps < 1 or (substeps > 1 and periods):
+        raise ValueError(f"substeps must be >= 1 and 1 with periods; got {substeps}")
+    K = _controller_d(controller, dt / substeps)
     nx = model.ss().nstates
     if (cov == "periods") != (replicates is not None) or (replicates is not None and not periods):
         raise ValueError("cov='periods' takes the replicates of a periodic experiment (periods > 0), and only it")
@@ -755,7 +799,7 @@ def oe_fit_closed_loop(model: GreyBoxModel, controller, r, y, dt: float,
             return ys - ys.mean(axis=0), None
     else:
         def simulate(th):
-            cl = _closed_loop(model.discretize(dt, th), K, feedback_output)
+            cl = lift_interpolated(_closed_loop(model.discretize(dt / substeps, th), K, feedback_output), substeps)
             return _lsim(cl, r2), (_free_response_basis(cl, nx, len(r2)) if estimate_x0 else None)
 
     return _fit(model, y2, dt, simulate, theta0, estimate_x0, nx, restarts, rng, max_nfev, progress, cov,

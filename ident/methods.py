@@ -14,13 +14,15 @@ from collections.abc import Callable
 
 from rotorlab.errors import UnknownNameError
 
+from .arx import arx
 from .greybox import GreyBoxModel, GreyBoxResult, oe_fit
 from .hinf_match import HinfMatchResult, hinf_match
 from .lms import kung, lms_batch
 from .model import IdentifiedModel
 from .subspace import moesp, pbsid
 
-__all__ = ["Method", "METHODS", "get_method", "fit_pi_moesp", "fit_pbsid", "fit_lms_kung", "fit_oe", "fit_hinf_match"]
+__all__ = ["Method", "METHODS", "get_method", "fit_pi_moesp", "fit_pbsid", "fit_lms_kung", "fit_arx", "fit_oe",
+           "fit_hinf_match"]
 
 
 def fit_pi_moesp(u, y, *, dt: float, delay: int, order: int, horizon: int) -> IdentifiedModel:
@@ -39,6 +41,12 @@ def fit_lms_kung(u, y, *, dt: float, delay: int, order: int, taps: int) -> Ident
     # the LMS weights start with the direct term (w[0] = h[0] = D), the first sample Kung's method reads: no
     # padding (a leading zero would add one sample of delay)
     return kung(h, order=order, dt=dt, delay=delay)
+
+
+def fit_arx(u, y, *, dt: float, delay: int, order: int, nb: int | None = None) -> IdentifiedModel:
+    """ARX with ``order`` poles and ``nb`` (default ``order``) numerator terms from lag ``delay``
+    (:func:`rotorlab.ident.arx.arx`)."""
+    return arx(u, y, order, order if nb is None else nb, dt=dt, delay=delay)
 
 
 def fit_oe(u, y, *, dt: float, delay: int, structure: GreyBoxModel, restarts: int = 0, rng=None) -> GreyBoxResult:
@@ -74,6 +82,7 @@ METHODS: dict[str, Method] = {m.name: m for m in (
     Method("pi-moesp", fit_pi_moesp, ("order", "horizon"), False, "MOESP with past-input instruments"),
     Method("pbsid", fit_pbsid, ("order", "past", "future"), False, "predictor-based subspace identification"),
     Method("lms-kung", fit_lms_kung, ("order", "taps"), False, "LMS impulse response + Kung realisation"),
+    Method("arx", fit_arx, ("order",), False, "ARX by linear least squares (equation error)"),
     Method("oe-greybox", fit_oe, ("structure",), True, "output-error fit of a grey-box structure"),
     Method("hinf-match", fit_hinf_match, ("structure", "order", "horizon"), True,
            "H-inf matching of a grey-box structure to a PI-MOESP model"),

@@ -291,6 +291,19 @@ def test_window_override_is_used(flight, tmp_path):
         select_windows(log, rec, "rate_sp", "rate", override=[(4.0, 10.0)])
 
 
+def test_airborne_candidates_leave_out_takeoff_and_touchdown(flight, tmp_path):
+    from rotorlab.ident.flightlogs.windows import GROUND_GUARD_S, split_windows
+
+    log = read_flight_log(_write("ulog", flight, tmp_path))
+    log.excitation = []  # the airborne time is the candidate time
+    rec = log.record("roll", ("rate_sp", "rate"))
+    ident, held, kind = split_windows(log, rec)
+    (air,) = log.airborne
+    assert kind.startswith("airborne") and GROUND_GUARD_S > 0
+    assert ident[0].start_s == pytest.approx(max(air.start_s, rec.t_s[0]) + GROUND_GUARD_S)
+    assert held[-1].stop_s == pytest.approx(min(air.stop_s, rec.t_s[-1] + rec.dt) - GROUND_GUARD_S)
+
+
 def test_controller_at_another_rate_keeps_the_tustin_law():
     from rotorlab.ident.flightlogs.identify import controller_at
 

@@ -21,6 +21,8 @@ SETTINGS = {
     "pi-moesp": dict(order=2, horizon=20),
     "pbsid": dict(order=2, past=20, future=10),
     "lms-kung": dict(order=2, taps=80),
+    # equation error: consistent under output noise only as the order grows (order 2 misses by 60 %)
+    "arx": dict(order=8),
     "oe-greybox": dict(structure=rate_tf_structure(), restarts=0, rng=0),
     "hinf-match": dict(structure=rate_tf_structure(delay_s=DELAY * DT), order=2, horizon=20, restarts=0, rng=0),
 }

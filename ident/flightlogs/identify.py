@@ -1,7 +1,7 @@
 """Per-axis identification from a flight log: the plant (rate-loop output -> rate), the closed loop (rate
 set-point -> rate), and the plant recovered through the known controller (indirect route).
 
-The direct fits use the project's methods (:data:`rotorlab.ident.methods.METHODS`) and ARX: a few orders and methods
+The direct fits use the project's methods (:data:`rotorlab.ident.methods.METHODS`): a few orders and methods
 are fitted on the longest identification window and the one that predicts the other identification data best
 is kept (never the held-out data, which only scores the result). The indirect fit takes the controller as a
 python-control LTI system, so the autopilot's law (``rotorlab.autopilots``) plugs in from outside:
@@ -19,15 +19,15 @@ from rotorlab.errors import DataError
 from rotorlab.lti import as_ss, is_discrete
 
 from ..delay import estimate_delay
-from ..greybox import GreyBoxModel, Param, _closed_loop, oe_fit_closed_loop, simulate_closed_loop
+from ..greybox import GreyBoxModel, Param, _closed_loop, lift_interpolated, oe_fit_closed_loop, simulate_closed_loop
 from ..methods import METHODS
 from ..metrics import simulate, vaf
 from ..model import IdentifiedModel
 from .flightlog import Record
 from .windows import Split
 
-__all__ = ["AxisModel", "CANDIDATES", "FALLBACK", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
-           "controller_at", "holdout_prediction", "window_runs"]
+__all__ = ["AxisModel", "CANDIDATES", "FALLBACK", "MAX_FIT_SAMPLES", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
+           "controller_at", "loop_substeps", "holdout_prediction", "window_runs"]
 
 # (method, settings) tried by the direct fits, per kind. Orders 2-4 cover a rate loop (integrator, motor lag,
 # filters). The plant is seen in closed loop, where only PBSID (predictor-based) is consistent: past-input
@@ -40,8 +40,8 @@ CANDIDATES = {
         ("pi-moesp", {"order": 4, "horizon": 20}),
         ("pbsid", {"order": 2, "past": 20, "future": 10}),
         ("pbsid", {"order": 4, "past": 20, "future": 10}),
-        ("arx", {"na": 2, "nb": 2}),
-        ("arx", {"na": 4, "nb": 4}),
+        ("arx", {"order": 2}),
+        ("arx", {"order": 4}),
     ),
     "plant": (
         ("pbsid", {"order": 2, "past": 40, "future": 20}),
@@ -58,6 +58,10 @@ FALLBACK = {
     ),
 }
 MIN_SAMPLES = 100
+# Samples a candidate is fitted on (and scored on, and twice this for the refit): 20 s at 250 Hz is hundreds of
+# rate-loop time constants, and the cost of the fits grows with the data while the model stops improving; a long
+# log's further windows add time, not information (the held-out score always uses every held-out window)
+MAX_FIT_SAMPLES = 5000
 # a closed rate loop is stable; a plant may integrate (rate from torque), so one pole may sit on the unit circle
 MAX_POLE_RADIUS = {"closed-loop": 1.0 - 1e-9, "plant": 1.0 + 1e-4}
 KINDS = {"closed-loop": ("rate_sp", "rate"), "plant": ("rate_out", "rate")}
@@ -112,6 +116,18 @@ def window_runs(rec: Record, windows, min_samples: int = 50) -> list[np.ndarray]
     return out
 
 
+def _capped(runs, n: int) -> list:
+    """The first runs (whole, the last one cut) holding at most ``n`` samples together; runs under
+    ``MIN_SAMPLES`` left after the cut are dropped."""
+    out, left = [], n
+    for r in runs:
+        if left < MIN_SAMPLES:
+            break
+        out.append(r[:left])
+        left -= len(out[-1])
+    return out
+
+
 def _centred(x, idx):
     """``x[idx]`` with its mean removed: trims (a set-point offset, the torque that balances an off-centre mass,
     a gyro bias) are constants outside the LTI model, so every window is fitted and predicted about its mean."""
@@ -146,41 +162,7 @@ def holdout_prediction(model, rec: Record, u_name: str, y_name: str, windows) ->
     return v, pred
 
 
-def fit_arx(u, y, *, dt: float, delay: int, na: int, nb: int) -> IdentifiedModel:
-    """ARX ``A(q) y = B(q) u(k - delay) + e`` by linear least squares, as a state-space IdentifiedModel.
-
-    ``B`` starts at lag 0 (``delay = 0``: a direct term, what a closed loop sampled slower than it runs shows),
-    ``delay`` shifts it. Written here because python-control and scipy fit no ARX; it is the baseline the
-    issue's figures were measured with, kept among the candidates so the choice is never worse than it on the
-    data it is scored on.
-
-    Examples
-    --------
-    >>> rng = np.random.default_rng(0)
-    >>> u = rng.standard_normal(500)
-    >>> y = np.zeros(500)
-    >>> for k in range(1, 500):
-    ...     y[k] = 0.9 * y[k - 1] + 0.5 * u[k - 1]
-    >>> m = fit_arx(u, y, dt=0.01, delay=1, na=1, nb=1)
-    >>> float(np.round(m.sys.A[0, 0], 6))
-    0.9
-    """
-    u, y = np.asarray(u, float).ravel(), np.asarray(y, float).ravel()
-    n0 = max(na, nb - 1 + delay)
-    N = len(y)
-    if N - n0 < 4 * (na + nb):
-        raise DataError(f"ARX({na},{nb}) needs at least {n0 + 4 * (na + nb)} samples; got {N}")
-    cols = [-y[n0 - i:N - i] for i in range(1, na + 1)] + [u[n0 - delay - j:N - delay - j] for j in range(nb)]
-    theta = np.linalg.lstsq(np.column_stack(cols), y[n0:], rcond=None)[0]
-    a = np.r_[1.0, theta[:na]]
-    b = np.r_[theta[na:], np.zeros(max(0, na + 1 - nb))]
-    sys = ct.ss(ct.tf(b[:max(na + 1, nb)], np.r_[a, np.zeros(max(0, nb - na - 1))], dt))
-    return IdentifiedModel(sys=sys, delay=delay, method="arx", settings={"na": na, "nb": nb})
-
-
 def _fit(name, u, y, dt, delay, settings):
-    if name == "arx":
-        return fit_arx(u, y, dt=dt, delay=delay, **settings)
     return METHODS[name].fit(u, y, dt=dt, delay=delay, **settings)
 
 
@@ -219,8 +201,9 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
                         f"({MIN_SAMPLES * rec.dt:.3g} s at {1 / rec.dt:.4g} Hz)")
     runs.sort(key=len, reverse=True)
     main = runs[0]
-    k = int(0.75 * len(main))
-    fit_idx, inner = main[:k], [main[k:]] + runs[1:]
+    k = min(int(0.75 * len(main)), MAX_FIT_SAMPLES)
+    fit_idx, inner = main[:k], _capped([main[k:]] + runs[1:], MAX_FIT_SAMPLES)
+    runs = _capped(runs, 2 * MAX_FIT_SAMPLES)
     uf, yf = _centred(u, fit_idx), _centred(y, fit_idx)
     delay = _delay(uf, yf)
     tried, best = [], None
@@ -304,6 +287,26 @@ def _d2c_tustin(sysd: ct.StateSpace) -> ct.StateSpace:
     return ct.ss((2.0 / T) * (A - np.eye(A.shape[0])) @ M, (2.0 / T) * M @ B, 2.0 * C @ M, D - C @ M @ B)
 
 
+def loop_substeps(controller, dt: float) -> int:
+    """Loop ticks per log sample: ``round(dt / controller.dt)`` for a discrete controller whose loop runs at least
+    1.5 times faster than the log is sampled, else 1.
+
+    At the log's rate a 400 Hz law with 20 Hz filters, moved to a 25 Hz log (Nyquist 12.5 Hz), is no longer the
+    law that flew; simulated at its own rate between the log's samples it is.
+
+    Examples
+    --------
+    >>> loop_substeps(ct.ss([], [], [], [[1.0]], 1 / 400), 1 / 24)
+    17
+    >>> loop_substeps(ct.ss([], [], [], [[1.0]], 1 / 400), 1 / 300)
+    1
+    """
+    K = as_ss(controller)
+    if not is_discrete(K) or K.dt is True or float(K.dt) * 1.5 > dt:
+        return 1
+    return max(1, int(round(dt / float(K.dt))))
+
+
 def controller_at(controller, dt: float) -> ct.StateSpace:
     """The controller as a discrete system at ``dt``: as is when its sample time is ``dt``; a continuous one by
     Tustin; a discrete one at another rate (the autopilot's loop rate above the log's) through the continuous
@@ -331,10 +334,12 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
     and ArduPilot form with derivative on the measurement and feed-forward) or ``rate_out = C (rate_sp - rate)``
     (one input) is simulated with the plant ``structure`` (default :func:`rate_plant_structure`) and the plant
     parameters fitted to the measured rate (``oe_fit_closed_loop``, initial state estimated) on the longest
-    identification window, the controller moved to the log's rate (:func:`controller_at`: a log written slower
-    than the loop does not hold the set-point's changes between its samples, so the loop cannot be simulated
-    more faithfully at its own rate). The fitted plant is closed again with the controller and scored on the held-out
-    windows; ``model`` is the discretised plant.
+    identification window. A log written at least 1.5 times slower than a discrete controller's loop is
+    simulated at the loop rate between its samples (:func:`loop_substeps` steps per sample, the set-point
+    interpolated linearly, the rate compared at the log's samples:
+    :func:`rotorlab.ident.greybox.lift_interpolated`); otherwise the controller is moved to the log's rate
+    (:func:`controller_at`). The fitted plant is closed again with the controller the same way and scored on
+    the held-out windows; ``model`` is the discretised plant.
 
     Parameters
     ----------
@@ -352,11 +357,12 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
     >>> res.extra["params"]  # doctest: +SKIP
     """
     structure = structure or rate_plant_structure()
-    K = controller_at(controller_lti, rec.dt)
+    sub = loop_substeps(controller_lti, rec.dt)
+    K = controller_at(controller_lti, rec.dt / sub)
     runs = window_runs(rec, split.ident, MIN_SAMPLES)
     if not runs:
         raise DataError(f"the {rec.axis} axis has no identification window of at least {MIN_SAMPLES} samples")
-    main = max(runs, key=len)
+    main = max(runs, key=len)[:MAX_FIT_SAMPLES]
     r, y = rec.data["rate_sp"][main], rec.data["rate"][main]
     r, y = r - r.mean(), y - y.mean()
     # a coarse scan of the gain first: the closed-loop cost is far from convex in K (too high a gain makes the
@@ -366,16 +372,19 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
         grid = structure.param("K").value * np.logspace(-2, 2, 17)
         costs = []
         for kk in grid:
-            ys = simulate_closed_loop(structure, K, r, rec.dt, {**structure.values(), "K": float(kk)})
+            ys = simulate_closed_loop(structure, K, r, rec.dt, {**structure.values(), "K": float(kk)}, substeps=sub)
             with np.errstate(over="ignore", invalid="ignore"):  # a gain that destabilises the loop diverges
                 e = y - (ys[:, 0] - ys[:, 0].mean())
                 cost = float(np.mean(e * e))
             costs.append(cost if np.isfinite(cost) else np.inf)
         theta0 = {"K": float(grid[int(np.argmin(costs))])}
-    res = oe_fit_closed_loop(structure, K, r, y, rec.dt, theta0, estimate_x0=True, cov="white", rng=rng)
+    res = oe_fit_closed_loop(structure, K, r, y, rec.dt, theta0, estimate_x0=True, cov="white", rng=rng,
+                             substeps=sub)
     plant_d = res.discrete()
-    cl = IdentifiedModel(sys=_closed_loop(as_ss(plant_d.with_delay()), K, 0), method="closed-loop-through-controller")
+    plant_f = res.model.discretize(rec.dt / sub)
+    cl = IdentifiedModel(sys=lift_interpolated(_closed_loop(plant_f, K, 0), sub),
+                         method="closed-loop-through-controller", settings={"substeps": sub})
     v, pred = holdout_prediction(cl, rec, "rate_sp", "rate", split.holdout)
     return AxisModel(rec.axis, "plant-indirect", plant_d, "rate_out", "rate", {"rate_out": "1", "rate": "rad/s"},
                      rec.dt, split, v, [], pred, {"params": dict(res.params), "closed_loop": cl,
-                                                  "fit_vaf": float(np.ravel(res.fit_vaf)[0])})
+                                                  "fit_vaf": float(np.ravel(res.fit_vaf)[0]), "substeps": sub})

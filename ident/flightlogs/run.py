@@ -17,7 +17,12 @@ from .identify import AxisModel, identify_direct, identify_plant_indirect
 from .names import AXES
 from .windows import select_windows
 
-__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller"]
+__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "controller_params", "MAX_IDENT_HZ"]
+
+# The identification rate of a log logged faster (default ``rate_hz``): the rate loop's informative band ends near
+# 15-30 Hz, so 250 Hz keeps 8x margin; a 1 kHz log identified at 1 kHz costs 4x the samples and far more in the
+# subspace fits for nothing. A loop faster than the log's rate is simulated between samples (identify_plant_indirect)
+MAX_IDENT_HZ = 250.0
 
 
 @dataclass
@@ -31,10 +36,28 @@ class FlightLogResult:
     notes: list = field(default_factory=list)
 
 
+def controller_params(log: FlightLog):
+    """The log's parameters with the names of older firmware mapped onto the current laws' names
+    (:func:`rotorlab.autopilots.legacy.upgrade`), and the list of what was mapped or filled (``Mapped``);
+    ``(log.params, [])`` where ``rotorlab.autopilots`` is not installed.
+
+    Examples
+    --------
+    >>> params, mapped = controller_params(read_flight_log("old.BIN"))  # doctest: +SKIP
+    >>> [m.text() for m in mapped]  # doctest: +SKIP
+    """
+    if importlib.util.find_spec("rotorlab.autopilots") is None:
+        return dict(log.params), []
+    from rotorlab.autopilots import legacy
+
+    return legacy.upgrade(log.autopilot, log.params)
+
+
 def autopilot_controller(log: FlightLog, axis: str):
     """The autopilot's rate controller of ``axis`` from the log's parameters, as a python-control LTI system at the
     loop rate, from ``rotorlab.autopilots`` (``get(autopilot).rate_controller_lti``); ``None`` where that package
-    is not installed. The logged rate has been through the gyro filter already (``gyro_filter=False``).
+    is not installed. The logged rate has been through the gyro filter already (``gyro_filter=False``). Parameters
+    of older firmware are mapped first (:func:`controller_params`).
 
     Raises
     ------
@@ -46,8 +69,9 @@ def autopilot_controller(log: FlightLog, axis: str):
     from rotorlab import autopilots
 
     ap = autopilots.get(log.autopilot)
+    params, _ = controller_params(log)
     try:
-        return ap.rate_controller_lti(log.params, axis, 1.0 / ap.loop_hz(log.params), gyro_filter=False)
+        return ap.rate_controller_lti(params, axis, 1.0 / ap.loop_hz(params), gyro_filter=False)
     except KeyError as exc:
         raise DataError(f"{log.path}: parameter {exc.args[0]} is not in the log; the {log.autopilot} rate "
                         f"controller of the {axis} axis needs it for the plant through the known controller") from None
@@ -77,7 +101,7 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
     holdout : float
         Fraction of the airborne (or excitation) time held out at its end to score the models.
     rate_hz : float, optional
-        Identification rate (default: the slowest signal of each record).
+        Identification rate (default: the slowest signal of each record, at most :data:`MAX_IDENT_HZ`).
     controller : callable or None
         ``controller(log, axis) -> LTI or None``.
 
@@ -100,13 +124,18 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
     res = FlightLogResult(log)
     strict = axes is not None
     axes = list(axes) if strict else [a for a in AXES if a in log.axes]
+    mapped = controller_params(log)[1] if controller is not None else []
+    res.notes += [f"controller parameter {m.text()}" for m in mapped]
     missing = [a for a in axes if a not in log.axes]
     if missing:
         raise DataError(f"{log.path}: no rate set-point and measured rate for {', '.join(missing)}; the log has "
                         f"{', '.join(log.axes) or 'none'}")
     for axis in axes:
-        names = ("rate_sp", "rate") + (("rate_out",) if "rate_out" in log.signals[axis] else ())
-        rec = log.record(axis, names, rate_hz=rate_hz)
+        # each model on the signals it needs at their own rate: a slow rate-loop output (PX4 2016 logged
+        # actuator_controls_0 at half the set-point's rate) must not slow the closed loop's record down
+        has_out = "rate_out" in log.signals[axis]
+        rec = _record(log, axis, ("rate_sp", "rate"), rate_hz)
+        recs = {"closed-loop": rec, "plant-indirect": rec}
         models = {}
         try:
             split_cl = select_windows(log, rec, "rate_sp", "rate", holdout=holdout, override=windows)
@@ -116,12 +145,13 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
                 raise
             res.notes.append(f"{axis}: not identified: {exc}")
             continue
-        if "rate_out" in names:
+        if has_out:
             # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
             # does not excite enough is a note, not the end of the run
             try:
-                split_p = select_windows(log, rec, "rate_out", "rate", holdout=holdout, override=windows)
-                models["plant"] = identify_direct(rec, split_p, "plant")
+                recs["plant"] = _record(log, axis, ("rate_out", "rate"), rate_hz)
+                split_p = select_windows(log, recs["plant"], "rate_out", "rate", holdout=holdout, override=windows)
+                models["plant"] = identify_direct(recs["plant"], split_p, "plant")
             except DataError as exc:
                 res.notes.append(f"{axis}: no direct plant model: {exc}")
         else:
@@ -130,22 +160,30 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
         if C is not None:
             try:
                 models["plant-indirect"] = identify_plant_indirect(rec, split_cl, C)
+                models["plant-indirect"].extra["controller_params_mapped"] = [m.text() for m in mapped]
             except (DataError, ValueError) as exc:
                 res.notes.append(f"{axis}: no plant through the controller: {exc}")
         else:
             res.notes.append(f"{axis}: plant through the known controller skipped (rotorlab.autopilots not installed)")
         res.models[axis] = models
         for kind, m in models.items():
-            res.files.append(_save(save_model, out / f"{axis}-{kind}.json", m, log, rec))
-        main = models.get("plant-indirect") or models.get("plant") or models["closed-loop"]
-        res.files.append(_save(save_model, out / f"{axis}.json", main, log, rec))
+            res.files.append(_save(save_model, out / f"{axis}-{kind}.json", m, log, recs[kind]))
+        main = next(k for k in ("plant-indirect", "plant", "closed-loop") if k in models)
+        res.files.append(_save(save_model, out / f"{axis}.json", models[main], log, recs[main]))
     if not res.models:
-        raise DataError(f"{log.path}: no axis could be identified: " + "; ".join(res.notes))
+        why = [n for n in res.notes if not n.startswith("controller parameter ")]
+        raise DataError(f"{log.path}: no axis could be identified: " + "; ".join(why))
     if report:
         from .report import write_report
 
         res.files += write_report(res, out)
     return res
+
+
+def _record(log: FlightLog, axis: str, names, rate_hz):
+    if rate_hz is None:
+        rate_hz = min(MAX_IDENT_HZ, min(log.series(axis, n).rate_hz for n in names))
+    return log.record(axis, names, rate_hz=rate_hz)
 
 
 def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
@@ -156,6 +194,8 @@ def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
              "windows": [[w.start_s, w.stop_s, w.reason] for w in m.split.ident],
              "holdout": [[w.start_s, w.stop_s] for w in m.split.holdout],
              "vaf_holdout": m.vaf_holdout, "tried": [[t, None if np.isnan(v) else v] for t, v in m.tried],
-             **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {})}
+             **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {}),
+             **({"controller_params_mapped": m.extra["controller_params_mapped"]}
+                if "controller_params_mapped" in m.extra else {})}
     return save_model(path, m.model, vaf=[m.vaf_holdout], extra=extra, input=[m.input], output=[m.output],
                       units=dict(m.units))

@@ -2,7 +2,7 @@
 
 Every :class:`Window` carries the reason it was chosen, for the log report. The held-out part (the last
 ``holdout`` fraction of the candidate time: the autopilot's excitation windows when it logged any, else the
-airborne time) is never searched for identification windows, so a model's VAF on it is an honest prediction.
+airborne time less :data:`GROUND_GUARD_S` at each end) is never searched for identification windows, so a model's VAF on it is an honest prediction.
 """
 
 from __future__ import annotations
@@ -16,11 +16,16 @@ from rotorlab.errors import DataError
 
 from .flightlog import FlightLog, Interval, Record
 
-__all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats", "MIN_RMS"]
+__all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats", "band_stats_many", "MIN_RMS",
+           "GROUND_GUARD_S"]
 
 # The least excitation an input must carry in the band (RMS, its unit): 0.05 rad/s (3 deg/s) of rate set-point is
 # above what a hovering attitude loop commands from sensor noise and well below a pilot's stick input.
 MIN_RMS = {"rate_sp": 0.05}
+# Seconds cut from each end of an airborne interval: take-off and touchdown are ground contact, not the flying
+# plant, and the thrust threshold and land detectors that bound the interval lag them. On the real development logs
+# the last second before a thrust-threshold landing holds the touchdown (gyro RMS 3x the set-point's).
+GROUND_GUARD_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -73,6 +78,34 @@ def band_stats(u, y, dt: float, band_hz) -> tuple[float, float]:
     return power, float(np.nanmean(cxy[m]))
 
 
+def band_stats_many(U, Y, dt: float, band_hz) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`band_stats` of every row of ``U`` and ``Y`` (windows of one length) in one batched Welch pass: the
+    per-window calls of a long log cost more in scipy's per-call overhead than in arithmetic.
+
+    Examples
+    --------
+    >>> U = np.random.default_rng(0).standard_normal((3, 400))
+    >>> p, c = band_stats_many(U, 2 * U, 0.01, (0.5, 20.0))
+    >>> bool(np.allclose(p, [band_stats(u, 2 * u, 0.01, (0.5, 20.0))[0] for u in U]))
+    True
+    """
+    U, Y = np.atleast_2d(U), np.atleast_2d(Y)
+    fs = 1.0 / dt
+    nper = int(min(U.shape[1], max(32, round(fs))))
+    f, puu = sig.welch(U, fs=fs, nperseg=nper, detrend="linear", axis=-1)
+    m = (f >= band_hz[0]) & (f <= band_hz[1])
+    if not m.any():
+        return np.zeros(len(U)), np.zeros(len(U))
+    power = np.trapezoid(puu[:, m], f[m], axis=-1)
+    live = (U.std(axis=1) > 0) & (Y.std(axis=1) > 0)
+    coh = np.zeros(len(U))
+    if live.any():
+        with np.errstate(invalid="ignore", divide="ignore"):
+            _, cxy = sig.coherence(U[live], Y[live], fs=fs, nperseg=nper, detrend="linear", axis=-1)
+        coh[live] = np.nanmean(cxy[:, m], axis=-1)
+    return power, coh
+
+
 def _clip(intervals, start, stop):
     out = []
     for i in intervals:
@@ -87,14 +120,17 @@ def _candidates(log: FlightLog, rec: Record) -> tuple[list, str]:
         how = log.airborne_source or "no land detector, thrust or armed signal in the log"
         raise DataError(f"{log.path}: no airborne time found ({how}); expected a flight, got a log on the ground")
     air = _clip(log.airborne, rec.t_s[0], rec.t_s[-1] + rec.dt)
-    if not air:
-        raise DataError(f"{log.path}: the {rec.axis} signals do not overlap the airborne time "
-                        f"({', '.join(f'{i.start_s:.1f}-{i.stop_s:.1f} s' for i in log.airborne)})")
+    # the guard applies to the airborne time only: an autopilot excites only once flying
+    guarded = [Interval(i.start_s + GROUND_GUARD_S, i.stop_s - GROUND_GUARD_S, i.label) for i in air
+               if i.duration_s > 2 * GROUND_GUARD_S]
+    if not guarded:
+        raise DataError(f"{log.path}: the {rec.axis} signals do not overlap the airborne time by more than "
+                        f"{2 * GROUND_GUARD_S:g} s ({', '.join(f'{i.start_s:.1f}-{i.stop_s:.1f} s' for i in log.airborne)})")
     exc = [i for i in log.excitation if i.label == rec.axis]
     exc_air = [j for i in exc for j in _clip(air, i.start_s, i.stop_s)]
     if exc_air:
         return exc_air, "autopilot excitation window (airborne)"
-    return air, "airborne"
+    return guarded, f"airborne (less {GROUND_GUARD_S:g} s of take-off and touchdown)"
 
 
 def _same_interval(intervals, t0, t1) -> bool:
@@ -167,7 +203,16 @@ def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, ban
     if not cands:
         raise DataError(f"{log.path}: the {rec.axis} axis has no {kind} stretch of {window_s:g} s before the held-out "
                         f"part; expected a longer flight")
-    stats = [band_stats(u[a:b], y[a:b], rec.dt, band) for a, b in cands]
+    stats = [None] * len(cands)
+    full = [i for i, (a, b) in enumerate(cands) if b - a == n_win]
+    if full:
+        ix = np.array([cands[i][0] for i in full])[:, None] + np.arange(n_win)
+        ps, cs = band_stats_many(u[ix], y[ix], rec.dt, band)
+        for i, p, c in zip(full, ps, cs):
+            stats[i] = (float(p), float(c))
+    for i, (a, b) in enumerate(cands):
+        if stats[i] is None:
+            stats[i] = band_stats(u[a:b], y[a:b], rec.dt, band)
     pmax = max(p for p, _ in stats)
     floor = (MIN_RMS if min_rms is None else min_rms).get(u_name, 0.0) ** 2
     keep = [(a, b, p, c) for (a, b), (p, c) in zip(cands, stats)

@@ -4,7 +4,8 @@ Prints the model (time base, order, delay, poles and zeros in rad/s with natural
 gain with units) and its VAF on the identification data and, with --cv-log or --cv-split, on
 cross-validation data. Methods (rotorlab.ident.methods, the table the pipeline uses): pi-moesp (MOESP with
 past-input instruments), pbsid (predictor-based, for closed-loop data), lms-kung (LMS impulse response + Kung
-realisation), oe-greybox (output-error grey-box fit of --structure) and hinf-match (H-inf matching of
+realisation), arx (least-squares ARX of --order), oe-greybox (output-error grey-box fit of --structure) and
+hinf-match (H-inf matching of
 --structure to a PI-MOESP model). The LOG is a rotorlab Parquet log or a CSV file with a
 header row; --column-map renames CSV columns, --resample interpolates uneven time stamps. The time column is
 read in seconds, or in the unit its type, the Parquet units metadata or --time-unit gives; a column whose steps
@@ -37,8 +38,8 @@ def add_parser(sub):
     # would load the identification stack before every command
     # --method/--input/--output are required for Parquet/CSV logs (checked in run()); a flight log needs none
     p.add_argument("--method",
-                   help="identification method of rotorlab.ident.methods (pi-moesp, pbsid, lms-kung, oe-greybox, "
-                        "hinf-match)")
+                   help="identification method of rotorlab.ident.methods (pi-moesp, pbsid, lms-kung, arx, "
+                        "oe-greybox, hinf-match)")
     p.add_argument("--input", help="input column(s), comma-separated")
     p.add_argument("--output", help="output column(s), comma-separated")
     p.add_argument("--order", type=positive_int, default=4, help="model order (black-box methods)")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rotorlab.cli import CLIError
+from rotorlab.cli import CLIError, process_count
 
 FLIGHT_LOG_SUFFIXES = (".ulg", ".bin", ".log")
 
@@ -29,6 +29,15 @@ def add_arguments(p) -> None:
                    help="identification rate (default: the slowest logged signal of each axis)")
     g.add_argument("--allow-truncated", action="store_true",
                    help="read a ULog cut short (power loss) up to its last whole message")
+    g.add_argument("--fleet", action="store_true",
+                   help="LOG is a folder of flight logs: identify each (one model folder per log under --out) and "
+                        "write the fleet summary fleet.csv and fleet.md")
+    g.add_argument("--executor", default="local",
+                   help="where a fleet's logs run: local (processes), serial, dask (a local cluster) or "
+                        "dask://HOST:PORT (a scheduler sends pickled objects: connect only to one you trust, "
+                        "docs/security.md)")
+    g.add_argument("--workers", type=process_count, default=None,
+                   help="worker processes for --fleet (at most twice the CPUs of this machine; default: the executor's)")
 
 
 def _windows(items):
@@ -60,6 +69,8 @@ def run_flight_log(args) -> int:
         raise CLIError(f"--holdout must be in (0, 1), got {args.holdout}")
     if args.rate_hz is not None and not args.rate_hz > 0:
         raise CLIError(f"--rate-hz must be > 0, got {args.rate_hz}")
+    if args.fleet:
+        return _run_fleet(args, axes, Path(args.out))
     # a flight log writes a folder (one model file per axis and the report), never over the log itself
     out = check_output(args.out, [args.log], what="folder")
     res = identify_flight_log(args.log, out, axes, windows=_windows(args.window), holdout=args.holdout,
@@ -74,4 +85,29 @@ def run_flight_log(args) -> int:
     for n in log.notes + res.notes:
         print(f"  note: {n}")
     print(f"wrote {len(res.files)} files to {out} (report: {out / 'report.html'})")
+    return 0
+
+
+def _run_fleet(args, axes, out: Path) -> int:
+    from rotorlab.atomic import check_output
+    from rotorlab.executor import get_executor
+    from rotorlab.ident.flightlogs.fleet import identify_fleet
+
+    if out.exists() and not out.is_dir():
+        raise CLIError(f"--out {out}: a fleet writes a folder (one model folder per log and the fleet summary); "
+                       "expected a folder, got a file")
+    if args.window:
+        raise CLIError("--window is in one log's time; a fleet's windows are chosen per log (leave --window out)")
+    out = check_output(out, [args.log], what="folder")  # never over the fleet folder itself
+    with get_executor(args.executor, args.workers) as ex:
+        res = identify_fleet(args.log, out, axes, executor=ex, holdout=args.holdout, rate_hz=args.rate_hz,
+                             allow_truncated=args.allow_truncated)
+    logs = {r["log"] for r in res.rows}
+    print(f"{args.log}: {len(logs)} logs on {ex.name}, {len(res.failed)} not identified")
+    for r in res.rows:
+        if r["error"]:
+            print(f"  {r['log']}: {r['error']}")
+        else:
+            print(f"  {r['log']} {r['axis']:5s} {r['kind']:15s} {r['method']}: VAF {r['vaf_holdout_pct']:.1f} %")
+    print(f"wrote {out / 'fleet.csv'} and {out / 'fleet.md'}")
     return 0
