@@ -109,7 +109,7 @@ def get_method(name: str) -> Method:
     >>> m.name
     'pbsid'
     >>> sorted(ident.METHODS)
-    ['hinf-match', 'lms-kung', 'oe-greybox', 'pbsid', 'pi-moesp']
+    ['arx', 'hinf-match', 'lms-kung', 'oe-greybox', 'pbsid', 'pi-moesp']
     """
     if name not in METHODS:
         raise UnknownNameError("identification method", name, METHODS)
