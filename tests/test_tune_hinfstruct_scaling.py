@@ -46,12 +46,14 @@ def test_plant_units_follow_the_plants_units_exactly(seed):
 
 def test_plant_units_are_the_loop_gain_of_a_diagonal_plant():
     # P22 = diag(g1, g2)/(s + 1) over the band of its one mode: the fitted sizes multiply to g1 and g2 times the
-    # geometric mean of |1/(jw + 1)| over 0.1..10 rad/s, and the off-diagonal zeros are left out of the fit
+    # mean of log|1/(jw + 1)| over 0.1..10 rad/s weighted by the open-loop |P11| = |1/(jw + 1)|, and the
+    # off-diagonal zeros are left out of the fit
     g = np.array([1e-3, 50.0])
     P = ct.ss(-np.eye(2), np.hstack([np.eye(2), np.diag(g)]), np.vstack([np.eye(2), np.eye(2)]), np.zeros((4, 4)))
     lgu, lgy, _ = hs._plant_units(P, 2, 2)
     w = hs._plant_band(-np.eye(2), 0.0)
-    gm = np.exp(np.mean(np.log(np.abs(1 / (1j * w + 1)))))
+    m = np.abs(1 / (1j * w + 1))
+    gm = np.exp(np.sum(m * np.log(m)) / np.sum(m))
     np.testing.assert_allclose(np.exp(lgu + lgy), g * gm, rtol=1e-9)
 
 
@@ -128,14 +130,14 @@ def test_ac15_in_other_units_reaches_the_same_gamma_along_the_same_path(ac15, si
 def test_ac15_result_is_stationary_in_any_units(ac15):
     P, ny, nu, r0 = ac15
     assert r0.gamma <= 15.2 * 1.02
-    assert r0.slope < 1e-2
+    assert r0.slope < 0.1
     # performance channels in other units: gamma scales, the relative stationarity does not
     nz = P.noutputs - ny
     zs = np.r_[np.full(nz, 1e-3), np.ones(ny)]
     Pz = ct.ss(P.A, P.B, zs[:, None] * np.asarray(P.C), zs[:, None] * np.asarray(P.D))
     r = hinfstruct(Pz, "static", ny, nu)
     assert r.gamma == pytest.approx(1e-3 * r0.gamma, rel=5e-3)
-    assert r.slope < 1e-2
+    assert r.slope < 0.1
 
 
 def test_slope_is_the_same_number_in_any_units(ac15):
@@ -157,7 +159,7 @@ def test_slope_is_the_same_number_in_any_units(ac15):
         slopes.append(hs._slope(prob, th))
     assert slopes[1] == pytest.approx(slopes[0], rel=1e-4)
     # and it is not small away from the optimum: the same gains at half size
-    assert hs._slope(prob, 0.5 * th) > 0.1
+    assert hs._slope(prob, 0.5 * th) > 1.0
 
 
 def test_relative_slope_is_the_relative_decrease_along_the_best_direction():

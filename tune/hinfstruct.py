@@ -83,7 +83,7 @@ from collections.abc import Sequence
 
 import control as ct
 import numpy as np
-from scipy.optimize import minimize, nnls
+from scipy.optimize import minimize, minimize_scalar, nnls
 
 from rotorlab import lti
 from rotorlab.executor import map_tasks, task_seeds
@@ -482,6 +482,10 @@ class _Problem:
         self.relative_stop = bool(relative_stop)
         # the range of random starts' rms size in the scaled variables, log10 (hinfstruct: from the plant)
         self.start_decades = tuple(start_decades)
+        # the tangent program keeps the closed-loop eigenvalues this much inside the stability test's own margin:
+        # its solutions land on their constraints, where the test would otherwise be decided by round-off (and
+        # a plant written in other units could take another path)
+        self.qp_margin = stab_margin if relative_stop else 0.0
         self.theta0 = structure.values
         self.stab_margin = stab_margin
         self.poles = poles  # (min_decay, min_damping) or None
@@ -785,7 +789,7 @@ class _Subproblem:
                 rows.append(z[nx] - v)            # t - v
             if prob.is_hard[ci]:
                 rows.append(HARD_BOUND - v)
-        return np.concatenate(rows + [eig])
+        return np.concatenate(rows + [eig - prob.qp_margin])
 
     def jac(self, z):
         key = z[:self.nx].tobytes()
@@ -1411,33 +1415,39 @@ def _plant_band(A, dt, npoints=64):
 
 
 def _plant_units(P, nmeas, ncon):
-    """Sizes of the plant's controls and measurements, from ``P22`` (u -> y) over the band of its modes.
+    """Sizes of the plant's controls and measurements, from ``P22`` (u -> y) at the frequencies that matter.
 
-    ``log|P22_ji(jw)|``, averaged over :func:`_plant_band` (the log of the geometric-mean gain), is fitted by
-    least squares as ``log gy_j + log gu_i`` over the entries that are not structurally zero. A controller
-    gain ``K_ij`` then closes a loop of about ``|K_ij| gy_j gu_i`` on average over the band, and
-    ``1 / (gu_i gy_j)`` is its natural unit. The split between ``gu`` and ``gy`` (a controller state's own
+    ``log|P22_ji(jw)|`` is averaged over :func:`_plant_band` with weights proportional to the open-loop
+    performance gain ``sigma_max(P11(jw))`` (where the disturbances show in the performance outputs: a lightly
+    damped structure's resonances, an unstable or slow mode's low frequencies; uniform where ``P11`` is zero),
+    and fitted by least squares as ``log gy_j + log gu_i`` over the entries that are not structurally zero. A
+    controller gain ``K_ij`` then closes a loop of about ``|K_ij| gy_j gu_i`` where the performance is at stake,
+    and ``1 / (gu_i gy_j)`` is its natural unit. ``P11`` does not depend on the units of u and y, and the
+    weights are normalised, so they do not depend on a common factor of w or z either. The split between ``gu`` and ``gy`` (a controller state's own
     units) is fixed by the mean of ``log gu`` equal to the mean log column norm of ``B2``. Every step is
     equivariant: rescaling control ``i`` by ``a_i`` and measurement ``j`` by ``c_j`` multiplies ``gu_i`` by
     ``a_i`` and ``gy_j`` by ``c_j``, to round-off. Returns ``(log gu, log gy, sigma)`` with ``sigma`` the
     largest singular value of the normalised ``diag(1/gy) P22 diag(1/gu)`` at each band frequency."""
     A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
     nz, nw = C.shape[0] - nmeas, B.shape[1] - ncon
-    B2, C2, D22 = B[:, nw:], C[nz:], D[nz:, nw:]
+    B2 = B[:, nw:]
     dt = float(P.dt) if lti.is_discrete(P) else 0.0
     w = _plant_band(A, dt)
     if A.shape[0]:
         pts = np.exp(1j * w * dt) if dt else 1j * w
-        G = C2 @ np.linalg.solve(pts[:, None, None] * np.eye(A.shape[0]) - A,
-                                 np.broadcast_to(B2, (w.size,) + B2.shape)) + D22
+        Pf = C @ np.linalg.solve(pts[:, None, None] * np.eye(A.shape[0]) - A,
+                                 np.broadcast_to(B, (w.size,) + B.shape)) + D
     else:
-        G = np.broadcast_to(D22, (w.size,) + D22.shape).astype(complex)
+        Pf = np.broadcast_to(D, (w.size,) + D.shape).astype(complex)
+    G = Pf[:, nz:, nw:]
+    s11 = np.linalg.svd(Pf[:, :nz, :nw], compute_uv=False)[:, 0]
+    wt = s11 / s11.sum() if np.isfinite(s11.sum()) and s11.sum() > 0 else np.full(w.size, 1.0 / w.size)
     mag = np.abs(G)                                                      # (nf, ny, nu)
     rms = np.sqrt(np.mean(mag**2, axis=0))
     # structurally zero entries (no path u_i -> y_j) hold only round-off; a zero of a real entry on the grid
     # is floored at a tiny fraction of that entry's own size, which scales with it
     keep = rms > 1e-10 * np.sqrt(rms.max(axis=1, keepdims=True) * rms.max(axis=0, keepdims=True))
-    logm = np.mean(np.log(np.maximum(mag, np.maximum(1e-12 * rms, 1e-300))), axis=0)
+    logm = np.einsum("f,fji->ji", wt, np.log(np.maximum(mag, np.maximum(1e-12 * rms, 1e-300))))
     j, i = np.nonzero(keep)
     lgu, lgy = np.zeros(ncon), np.zeros(nmeas)
     if j.size:
@@ -1598,10 +1608,24 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
 
 def _slope(prob: _Problem, theta) -> float:
     """:func:`relative_slope` at ``theta`` over the gradients of the peaks within :data:`SLOPE_BAND` of the
-    largest (the active set of the max function, nearly equal peaks included)."""
+    largest (the active set of the max function, nearly equal peaks included). Every local peak within 10 %
+    is first located to 1e-9 in log frequency (bounded Brent search in its bracket), so which peaks count and
+    their gradients (Danskin: the gradient at the peak's frequency) do not depend on grid round-off."""
+    ch = prob.channels[0]
+
+    def value(logw):
+        return float(prob.evaluate_points(theta, prob.points([(0, np.array([np.exp(logw)]))]))[0][0][0])
+
     peaks = prob.all_peaks(theta)[0]
-    top = peaks[0][0]
-    w = np.array([wk for v, wk in peaks if v >= (1.0 - SLOPE_BAND) * top])
+    found = []
+    for v, wk in peaks:
+        if v < 0.9 * peaks[0][0]:
+            continue
+        lo, hi = np.log(max(wk / 1.02, ch.lo)), np.log(min(wk * 1.02, ch.hi))
+        r = minimize_scalar(lambda lw: -value(lw), bounds=(lo, hi), method="bounded", options={"xatol": 1e-9})
+        found.append((-r.fun, r.x) if -r.fun > v else (v, np.log(wk)))
+    top = max(v for v, _ in found)
+    w = np.unique(np.exp([lw for v, lw in found if v >= (1.0 - SLOPE_BAND) * top]))
     G = prob.evaluate_points(theta, prob.points([(0, w)]), grad=True)[1][0] * prob.scale[:, None]
     return relative_slope(G, prob.x_of(theta), top)
 
