@@ -1423,9 +1423,9 @@ def _plant_units(P, nmeas, ncon):
     and fitted by least squares as ``log gy_j + log gu_i`` over the entries that are not structurally zero. A
     controller gain ``K_ij`` then closes a loop of about ``|K_ij| gy_j gu_i`` where the performance is at stake,
     and ``1 / (gu_i gy_j)`` is its natural unit. ``P11`` does not depend on the units of u and y, and the
-    weights are normalised, so they do not depend on a common factor of w or z either. The split between ``gu`` and ``gy`` (a controller state's own
-    units) is fixed by the mean of ``log gu`` equal to the mean log column norm of ``B2``. Every step is
-    equivariant: rescaling control ``i`` by ``a_i`` and measurement ``j`` by ``c_j`` multiplies ``gu_i`` by
+    weights are normalised, so they do not depend on a common factor of w or z either. The split between
+    ``gu`` and ``gy`` (a controller state's own units) is fixed by the mean of ``log gu`` equal to the mean log
+    column norm of ``B2``. Every step is equivariant: rescaling control ``i`` by ``a_i`` and measurement ``j`` by ``c_j`` multiplies ``gu_i`` by
     ``a_i`` and ``gy_j`` by ``c_j``, to round-off. Returns ``(log gu, log gy, sigma)`` with ``sigma`` the
     largest singular value of the normalised ``diag(1/gy) P22 diag(1/gu)`` at each band frequency."""
     A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
