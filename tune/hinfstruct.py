@@ -61,10 +61,11 @@ like keep a unit of their own. Rescaling any control or measurement of P by a po
 controller mapped back, leaves every variable, gradient, trust region, random start and stopping test the
 same, so the path and the result change only by round-off (tests/test_tune_hinfstruct_scaling.py,
 benchmarks/bench_hinf_scaling.py). The stopping tests are relative to gamma and to the iterate's size
-(:func:`relative_slope`), so multiplying the performance channels by a constant changes nothing either.
+(:func:`relative_slope`), so they do not depend on a constant factor of the performance channels either.
 Random starts are random controllers in those variables whose rms size is drawn log-uniformly over the loop
-gains at which the normalised ``P22`` crosses 1 in the band of the plant's modes (at least 1.5 decades either
-side of one unit), each made stabilising by phase one, and run through the project's executor.
+gains at which the normalised ``P22`` crosses 1 in the band of the plant's modes (at least three decades, up
+to 1000 units: :func:`_variable_scale`), each made stabilising by phase one, and run through the project's
+executor.
 
 The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
 goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
@@ -1473,9 +1474,11 @@ def _variable_scale(S: Structure, P, nmeas, ncon, theta0, free):
     static gains, B, C, D of state-space blocks) get the natural unit of :func:`_plant_units`, which does not
     depend on the start or on the units the plant is written in; the others (time constants, set-point
     weights, A of state-space blocks) keep a unit of their own start value, at least a tenth of the largest
-    of them and of 1. The starts span the loop gains at which the normalised ``P22`` crosses 1 somewhere in the
-    band of the plant's modes (its 10 % and 90 % quantiles, so not at a resonance's peak), at least 1.5
-    decades either side of one unit and at most 3."""
+    of them and of 1. The random starts' rms size spans the loop gains from where the normalised ``P22`` first
+    crosses 1 in the band of the plant's modes (its 90 % quantile; within 0.1..10 units) up to where it has
+    crossed 1 almost everywhere (10 % quantile), at least three decades and at most 1000 units: smaller
+    controllers act like none, which the start from the blocks' values (zero by default) already covers, and
+    the optimum of a demanding performance channel lies at loop gains well above one."""
     lgu, lgy, sigma = _plant_units(P, nmeas, ncon)
     eu, ey = S.io_exponents()
     io = np.any(eu != 0, axis=1) | np.any(ey != 0, axis=1)
@@ -1484,8 +1487,8 @@ def _variable_scale(S: Structure, P, nmeas, ncon, theta0, free):
     ref = max(float(th[other].max()) if other.any() else 0.0, 1.0)
     scale = np.where(io, np.exp(-(eu @ lgu + ey @ lgy)), np.maximum(th, 0.1 * ref))
     q10, q90 = np.quantile(np.log10(np.maximum(sigma, 1e-300)), [0.1, 0.9])
-    decades = (float(np.clip(-q90, -3.0, -1.5)), float(np.clip(-q10, 1.5, 3.0)))
-    return scale[free], decades
+    lo = float(np.clip(-q90, -1.0, 1.0))
+    return scale[free], (lo, float(np.clip(-q10, lo + 3.0, 3.0)))
 
 
 def _as_structure(controller, nmeas, ncon, dt) -> Structure:
