@@ -171,3 +171,18 @@ def test_relative_slope_is_the_relative_decrease_along_the_best_direction():
     assert relative_slope(1e3 * G, x, 2e3) == pytest.approx(1.0)
     # at a kink of equal and opposite gradients the measure is zero
     assert relative_slope(np.array([[1.0, -1.0]]), np.array([3.0]), 5.0) == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.filterwarnings("ignore::FutureWarning")
+def test_pid_in_other_units_reaches_the_same_gamma():
+    # mixed sensitivity [W1 S; W2 KS] of 1/(s + 1) with a PID whose filter constant is tuned too, with the control
+    # in units 1000x larger and the measurement in units 100x smaller (kp, ki, kd start divided by 10, tf the
+    # same). The optimum is flat along (kd, tf): runs that differ only in round-off (even in the number of BLAS
+    # threads) end 0.07 % apart at different (kd, tf), so the bar is the 0.5 % on gamma
+    P = ct.minreal(ct.augw(ct.tf([1], [1, 1]), ct.tf([0.5, 2], [1, 0.05]), ct.tf([0.2], [1])), verbose=False)
+    a, c = 1e3, 1e-2
+    r0 = hinfstruct(P, PID(1.0, 0.5, 0.1, 0.05), 1, 1)
+    Ps = _rescale(P, 1, 1, [a], [c])
+    r = hinfstruct(Ps, PID(1.0 / (a * c), 0.5 / (a * c), 0.1 / (a * c), 0.05), 1, 1)
+    assert r.gamma == pytest.approx(r0.gamma, rel=5e-3)
+    assert lti.hinfnorm(closed_loop(Ps, 1, 1, r.controller))[0] == pytest.approx(r.gamma, rel=1e-9)
