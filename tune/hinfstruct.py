@@ -60,7 +60,8 @@ log-magnitude of ``P22`` over the band of the plant's modes (:func:`_plant_units
 like keep a unit of their own. Rescaling any control or measurement of P by a positive factor, with the
 controller mapped back, leaves every variable, gradient, trust region, random start and stopping test the
 same, so the path and the result change only by round-off (tests/test_tune_hinfstruct_scaling.py,
-benchmarks/bench_hinf_scaling.py). The stopping tests are relative to gamma and to the iterate's size
+benchmarks/bench_hinf_scaling.py); where a start creeps until its iteration budget runs out, round-off can
+still grow into another end point, as it can between CPUs (docs/hinfstruct-units.md). The stopping tests are relative to gamma and to the iterate's size
 (:func:`relative_slope`), so they do not depend on a constant factor of the performance channels either.
 Random starts are random controllers in those variables whose rms size is drawn log-uniformly over the loop
 gains at which the normalised ``P22`` crosses 1 in the band of the plant's modes (at least three decades, up
