@@ -56,17 +56,17 @@ Units. The optimiser's variables are the parameters divided by a unit chosen fro
 fixed size or the start: a parameter that carries the units of the plant's signals (static gains, PID gains,
 B, C, D of state-space blocks, :meth:`rotorlab.tune.blocks.Block.io_exponents`) is measured in
 ``1 / (gu_i gy_j)``, where ``gu``, ``gy`` are sizes of the controls and measurements fitted to the
-log-magnitude of ``P22`` over the band of the plant's modes (:func:`_plant_units`); time constants and the
-like keep a unit of their own. Rescaling any control or measurement of P by a positive factor, with the
+log-magnitude of ``P22`` at the frequencies where the open-loop performance is large (:func:`_plant_units`);
+time constants and the like keep a unit of their own. Rescaling any control or measurement of P by a positive factor, with the
 controller mapped back, leaves every variable, gradient, trust region, random start and stopping test the
 same, so the path and the result change only by round-off (tests/test_tune_hinfstruct_scaling.py,
 benchmarks/bench_hinf_scaling.py); where a start creeps until its iteration budget runs out, round-off can
-still grow into another end point, as it can between CPUs (docs/hinfstruct-units.md). The stopping tests are relative to gamma and to the iterate's size
-(:func:`relative_slope`), so they do not depend on a constant factor of the performance channels either.
-Random starts are random controllers in those variables whose rms size is drawn log-uniformly over the loop
-gains at which the normalised ``P22`` crosses 1 in the band of the plant's modes (at least three decades, up
-to 1000 units: :func:`_variable_scale`), each made stabilising by phase one, and run through the project's
-executor.
+still grow into another end point, as it can between CPUs (docs/hinfstruct-units.md). The stopping tests
+are relative to gamma and to the iterate's size (:func:`relative_slope`), so they do not depend on a constant
+factor of the performance channels either. Random starts are random controllers in those variables whose rms
+size is drawn log-uniformly over the loop gains at which the normalised ``P22`` crosses 1 in the band of the
+plant's modes (at least three decades, up to 1000 units: :func:`_variable_scale`), each made stabilising by
+phase one, and run through the project's executor.
 
 The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
 goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
