@@ -159,8 +159,8 @@ def flex20(seed: int = 0) -> Problem:
     pinned-pinned beam, ``sin(k pi s)``, which fall into two symmetry groups about the middle (odd k symmetric,
     even k antisymmetric). Two force actuators at ``s = 0.5 -+ a`` and two position sensors at ``s = 0.5 -+ b``
     (a symmetric pair each, ``a != b``: non-collocated, so the sensor sees the actuator through modes of
-    alternating sign), with seeded ``a``, ``b``; the actuators push in newtons on modes of :data:`MODAL_MASS_KG`
-    (the disturbance and the displacements are in modal units). One disturbance force on the velocities, distributed as a
+    alternating sign), with seeded ``a``, ``b``; the actuators push in newtons on modes of :data:`MODAL_MASS_KG` (the
+    disturbance and the displacements are in modal units). One disturbance force on the velocities, distributed as a
     seeded smooth load. Performance ``z = [diag(q) x; r u]`` with heavy state weights ``q`` drawn log-uniformly
     in [300, 3000] and a small control weight ``r = 1``; no sensor noise (``D21 = 0``). The H-inf optimum of
     static 2x2 position feedback has gains of a few 10^3 N per unit displacement, nearly rank one (one

@@ -55,18 +55,17 @@ tuner, whose objective is a grid search over ten goals, skips it to keep a start
 Units. The optimiser's variables are the parameters divided by a unit chosen from the plant, never from a
 fixed size or the start: a parameter that carries the units of the plant's signals (static gains, PID gains,
 B, C, D of state-space blocks, :meth:`rotorlab.tune.blocks.Block.io_exponents`) is measured in
-``1 / (gu_i gy_j)``, where ``gu``, ``gy`` are sizes of the controls and measurements fitted to the
-log-magnitude of ``P22`` at the frequencies where the open-loop performance is large (:func:`_plant_units`);
-time constants and the like keep a unit of their own. Rescaling any control or measurement of P by a positive factor, with the
-controller mapped back, leaves every variable, gradient, trust region, random start and stopping test the
-same, so the path and the result change only by round-off (tests/test_tune_hinfstruct_scaling.py,
-benchmarks/bench_hinf_scaling.py); where a start creeps until its iteration budget runs out, round-off can
-still grow into another end point, as it can between CPUs (docs/hinfstruct-units.md). The stopping tests
-are relative to gamma and to the iterate's size (:func:`relative_slope`), so they do not depend on a constant
-factor of the performance channels either. Random starts are random controllers in those variables whose rms
-size is drawn log-uniformly over the loop gains at which the normalised ``P22`` crosses 1 in the band of the
-plant's modes (at least three decades, up to 1000 units: :func:`_variable_scale`), each made stabilising by
-phase one, and run through the project's executor.
+``1 / (gu_i gy_j)``, where ``gu``, ``gy`` are sizes of the controls and measurements fitted to the log-magnitude of
+``P22`` at the frequencies where the open-loop performance is large (:func:`_plant_units`); time constants and the like
+keep a unit of their own. Rescaling any control or measurement of P by a positive factor, with the controller mapped
+back, leaves every variable, gradient, trust region, random start and stopping test the same, so the path and the result
+change only by round-off (tests/test_tune_hinfstruct_scaling.py, benchmarks/bench_hinf_scaling.py); where a start creeps
+until its iteration budget runs out, round-off can still grow into another end point, as it can between CPUs
+(docs/hinfstruct-units.md). The stopping tests are relative to gamma and to the iterate's size (:func:`relative_slope`),
+so they do not depend on a constant factor of the performance channels either. Random starts are random controllers in
+those variables whose rms size is drawn log-uniformly over the loop gains at which the normalised ``P22`` crosses 1 in
+the band of the plant's modes (at least three decades, up to 1000 units: :func:`_variable_scale`), each made stabilising
+by phase one, and run through the project's executor.
 
 The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
 goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
@@ -1434,12 +1433,12 @@ def _plant_units(P, nmeas, ncon):
     damped structure's resonances, an unstable or slow mode's low frequencies; uniform where ``P11`` is zero),
     and fitted by least squares as ``log gy_j + log gu_i`` over the entries that are not structurally zero. A
     controller gain ``K_ij`` then closes a loop of about ``|K_ij| gy_j gu_i`` where the performance is at stake,
-    and ``1 / (gu_i gy_j)`` is its natural unit. ``P11`` does not depend on the units of u and y, and the
-    weights are normalised, so they do not depend on a common factor of w or z either. The split between
-    ``gu`` and ``gy`` (a controller state's own units) is fixed by the mean of ``log gu`` equal to the mean log
-    column norm of ``B2``. Every step is equivariant: rescaling control ``i`` by ``a_i`` and measurement ``j`` by ``c_j`` multiplies ``gu_i`` by
-    ``a_i`` and ``gy_j`` by ``c_j``, to round-off. Returns ``(log gu, log gy, sigma)`` with ``sigma`` the
-    largest singular value of the normalised ``diag(1/gy) P22 diag(1/gu)`` at each band frequency."""
+    and ``1 / (gu_i gy_j)`` is its natural unit. ``P11`` does not depend on the units of u and y, and the weights are
+    normalised, so they do not depend on a common factor of w or z either. The split between ``gu`` and ``gy`` (a
+    controller state's own units) is fixed by the mean of ``log gu`` equal to the mean log column norm of ``B2``. Every
+    step is equivariant: rescaling control ``i`` by ``a_i`` and measurement ``j`` by ``c_j`` multiplies ``gu_i`` by
+    ``a_i`` and ``gy_j`` by ``c_j``, to round-off. Returns ``(log gu, log gy, sigma)`` with ``sigma`` the largest
+    singular value of the normalised ``diag(1/gy) P22 diag(1/gu)`` at each band frequency."""
     A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
     nz, nw = C.shape[0] - nmeas, B.shape[1] - ncon
     B2 = B[:, nw:]
