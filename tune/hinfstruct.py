@@ -1391,7 +1391,9 @@ class HinfstructResult:
     gradients of every frequency peak within :data:`SLOPE_BAND` of gamma, in the plant-derived variables):
     the relative decrease of gamma that a step of the gains' own size would give along the best direction, to
     first order; it means the same whatever the units of the plant's signals, and is zero at a
-    Clarke-stationary point. ``stationarity`` is the tangent program's last predicted relative decrease.
+    Clarke-stationary point whose active set is a few isolated peaks. Where the closed loop's gain is flat over a
+    band (a full-order optimum is all-pass) no finite set of peaks represents it and ``slope`` stays large at
+    the optimum; ``stationarity``, the tangent program's last predicted relative decrease, is the measure there.
     """
 
     gamma: float
