@@ -163,9 +163,9 @@ def flex20(seed: int = 0) -> Problem:
     disturbance and the displacements are in modal units). One disturbance force on the velocities, distributed as a
     seeded smooth load. Performance ``z = [diag(q) x; r u]`` with heavy state weights ``q`` drawn log-uniformly
     in [300, 3000] and a small control weight ``r = 1``; no sensor noise (``D21 = 0``). The H-inf optimum of
-    static 2x2 position feedback has gains of a few 10^3 N per unit displacement, nearly rank one (one
-    combination of the sensors drives both actuators): from a start of unit size the low-gain valleys catch a
-    local optimiser.
+    static 2x2 position feedback has gains of 10^3-10^4 N per unit displacement, nearly rank one (flex20s0: singular
+    values 1.4e4 and 2.2e2; one combination of the sensors drives both actuators), and the start from K = 0 ends
+    in a low-gain valley 25 % above it.
     """
     rng = np.random.default_rng(1000 + seed)
     n = 20
@@ -188,7 +188,7 @@ def flex20(seed: int = 0) -> Problem:
     D12 = np.vstack([np.zeros((2 * n, 2)), np.eye(2)])
     C2 = np.hstack([Phi_y, np.zeros((2, n))])
     P = _assemble(A, B1, B2, C1, C2, np.zeros((2 * n + 2, 1)), D12, np.zeros((2, 1)))
-    return Problem(f"flex20s{seed}", P, 2, 2, "static", note="20 modes 1-140 rad/s, zeta 0.005, gains ~1e3")
+    return Problem(f"flex20s{seed}", P, 2, 2, "static", note="20 modes 1-140 rad/s, zeta 0.005, gains 1e3-1e4")
 
 
 def rescaled(prob: Problem, u_scale, y_scale) -> Problem:
