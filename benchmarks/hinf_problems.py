@@ -11,12 +11,19 @@ structure and, where the structure is full order, the optimal bound from ``contr
 ``mimo8d``    ``mimo8`` sampled at 20 Hz (zero-order hold): the spectral-radius side of the engine.
 ``mixsyn3``   mixed sensitivity ``[W1 S; W2 KS]`` of a first-order plant: a full-order (3 states) controller.
 ``rand4``     a random lightly unstable 4-state plant, 2 inputs, 2 measurements: a full-order controller.
+``flex20``    a lightly damped flexible structure (:func:`flex20`, seeds 0-2 as ``flex20s0`` ...): 20 modes from 1
+              to 140 rad/s, 40 states, 2 non-collocated force actuators and 2 position sensors, static 2x2 output
+              feedback whose optimum gains are about 10^3 (the engine's scale-invariance problem).
+
+:func:`rescaled` gives any problem with its control inputs and measurements in other units (the optimum's
+gamma is the same, its gains are divided by the factors).
 
 Each builder returns a :class:`Problem`. Run ``python benchmarks/bench_hinfstruct.py`` for the table.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import warnings
 
@@ -24,7 +31,7 @@ import control as ct
 import numpy as np
 
 from rotorlab import lti
-from rotorlab.tune.blocks import FixedOrderSS, StaticGain
+from rotorlab.tune.blocks import FixedOrderSS, StaticGain, Structure
 
 
 @dataclasses.dataclass
@@ -139,4 +146,74 @@ def rand4() -> Problem:
                    note="random unstable, 2x2, full order")
 
 
+# modal mass of flex20's structure: its actuators' newtons move the modes by 1/MODAL_MASS_KG, so the optimal
+# gains are this much larger than the loop gains they make
+MODAL_MASS_KG = 500.0
+
+
+def flex20(seed: int = 0) -> Problem:
+    """A lightly damped flexible structure in modal form, one member of a seeded family.
+
+    Modes ``q_k'' + 2 zeta w_k q_k' + w_k^2 q_k = phi_k(u, w)``, k = 1..20, with ``w_k`` from 1 to 140 rad/s
+    (a beam-like ``k^2`` spacing with a seeded +-3 % jitter) and ``zeta = 0.005``. The mode shapes are those of a
+    pinned-pinned beam, ``sin(k pi s)``, which fall into two symmetry groups about the middle (odd k symmetric,
+    even k antisymmetric). Two force actuators at ``s = 0.5 -+ a`` and two position sensors at ``s = 0.5 -+ b``
+    (a symmetric pair each, ``a != b``: non-collocated, so the sensor sees the actuator through modes of
+    alternating sign), with seeded ``a``, ``b``; the actuators push in newtons on modes of :data:`MODAL_MASS_KG` (the
+    disturbance and the displacements are in modal units). One disturbance force on the velocities, distributed as a
+    seeded smooth load. Performance ``z = [diag(q) x; r u]`` with heavy state weights ``q`` drawn log-uniformly
+    in [300, 3000] and a small control weight ``r = 1``; no sensor noise (``D21 = 0``). The H-inf optimum of
+    static 2x2 position feedback has gains of 10^3-10^4 N per unit displacement, nearly rank one (flex20s0: singular
+    values 1.4e4 and 2.2e2 at a local minimum 3.7 % above the best of 50 starts; one combination of the sensors
+    drives both actuators), and the start from K = 0 ends in a low-gain valley 30 % above the best.
+    """
+    rng = np.random.default_rng(1000 + seed)
+    n = 20
+    k = np.arange(1, n + 1)
+    wk = 1.0 + 139.0 * ((k**2 - 1) / (n**2 - 1)) * np.r_[1.0, 1.0 + 0.03 * rng.uniform(-1, 1, n - 2), 1.0]
+    wk = np.sort(wk)
+    zeta = 0.005
+    a, b = rng.uniform(0.15, 0.4), rng.uniform(0.05, 0.3)
+    shape = lambda s: np.sin(k * np.pi * s)  # noqa: E731
+    Phi_u = np.column_stack([shape(0.5 - a), shape(0.5 + a)])          # (n, 2) modal forces per actuator
+    Phi_y = np.vstack([shape(0.5 - b), shape(0.5 + b)])                # (2, n) modal displacements per sensor
+    load = rng.uniform(0.5, 1.5, 4)
+    s_grid = np.linspace(0.0, 1.0, 201)
+    dist = np.array([np.trapezoid(np.sin(kk * np.pi * s_grid) * np.polyval(load, s_grid), s_grid) for kk in k])
+    A = np.block([[np.zeros((n, n)), np.eye(n)], [-np.diag(wk**2), -np.diag(2 * zeta * wk)]])
+    B1 = np.r_[np.zeros(n), dist][:, None]
+    B2 = np.vstack([np.zeros((n, 2)), Phi_u / MODAL_MASS_KG])
+    q = np.exp(rng.uniform(np.log(300.0), np.log(3000.0), 2 * n))
+    C1 = np.vstack([np.diag(q), np.zeros((2, 2 * n))])
+    D12 = np.vstack([np.zeros((2 * n, 2)), np.eye(2)])
+    C2 = np.hstack([Phi_y, np.zeros((2, n))])
+    P = _assemble(A, B1, B2, C1, C2, np.zeros((2 * n + 2, 1)), D12, np.zeros((2, 1)))
+    return Problem(f"flex20s{seed}", P, 2, 2, "static", note="20 modes 1-140 rad/s, zeta 0.005, gains 1e3-1e4")
+
+
+def rescaled(prob: Problem, u_scale, y_scale) -> Problem:
+    """The same problem with control ``i`` in units ``u_scale[i]`` times larger (``B2, D12, D22`` columns times
+    ``u_scale``) and measurement ``j`` in units ``1/y_scale[j]`` (``C2, D21, D22`` rows times ``y_scale``):
+    ``K`` is optimal for ``prob`` exactly when ``diag(1/u_scale) K diag(1/y_scale)`` is for the result, with the
+    same closed loop and gamma. Scalars apply to every channel. A block controller is copied with its start
+    values mapped the same way (:meth:`rotorlab.tune.blocks.Block.io_exponents`), so both problems start from
+    the same closed loop."""
+    P = prob.P
+    nz, nw = P.noutputs - prob.nmeas, P.ninputs - prob.ncon
+    a = np.broadcast_to(np.asarray(u_scale, float), (prob.ncon,))
+    c = np.broadcast_to(np.asarray(y_scale, float), (prob.nmeas,))
+    Bs = np.r_[np.ones(nw), a]
+    Cs = np.r_[np.ones(nz), c]
+    A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
+    P2 = ct.ss(A, B * Bs, Cs[:, None] * C, Cs[:, None] * D * Bs, P.dt)
+    ctrl = prob.controller
+    if not isinstance(ctrl, str):
+        ctrl = copy.deepcopy(ctrl)
+        S = ctrl if isinstance(ctrl, Structure) else Structure([ctrl])
+        eu, ey = S.io_exponents()
+        S.set_values(S.values * np.exp(-(eu @ np.log(a) + ey @ np.log(c))))
+    return dataclasses.replace(prob, name=f"{prob.name}[u*{a[0]:g},y*{c[0]:g}]", P=P2, controller=ctrl)
+
+
 PROBLEMS = {f.__name__: f for f in (chain40, gain22, mimo8, mimo8d, mixsyn3, rand4)}
+PROBLEMS.update({f"flex20s{s}": (lambda s=s: flex20(s)) for s in range(3)})

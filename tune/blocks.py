@@ -55,6 +55,27 @@ class Block:
     def matrices(self, theta: np.ndarray):
         raise NotImplementedError
 
+    def io_exponents(self):
+        """How each parameter carries the units of the block's signals: two arrays ``(eu, ey)`` of shapes
+        ``(nparams, nu)`` and ``(nparams, ny)`` such that scaling the block's outputs (controls) by ``a`` and
+        its inputs (measurements) by ``c``, i.e. ``K -> diag(a) K diag(c)``, is the same as multiplying
+        parameter ``p`` by ``prod_i a_i ** eu[p, i] * prod_j c_j ** ey[p, j]``.
+
+        The structured H-inf engine sizes its variables with this (a parameter with all-zero rows, like a
+        filter time constant, is not rescaled by the plant's units). The base class declares every parameter
+        unit-free, which is right for a block whose gains do not scale with its signals; blocks whose gains do
+        override it.
+
+        Examples
+        --------
+        >>> from rotorlab.tune.blocks import PID
+        >>> eu, ey = PID(kp=2.0, ki=1.0, kd=0.1, tf=0.01).io_exponents()
+        >>> eu[:, 0].tolist(), ey[:, 0].tolist()  # kp, ki, kd scale with the loop, tf does not
+        ([1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 0.0])
+        """
+        n = len(self.params)
+        return np.zeros((n, self.nu)), np.zeros((n, self.ny))
+
     def matrix_derivatives(self, theta: np.ndarray, idx) -> list:
         """d(A, B, C, D)/d theta_i for the block parameters ``idx``, by central differences.
 
@@ -120,6 +141,11 @@ class StaticGain(Block):
     def matrices(self, theta):
         return (np.zeros((0, 0)), np.zeros((0, self.ny)), np.zeros((self.nu, 0)),
                 np.asarray(theta, float).reshape(self.nu, self.ny))
+
+    def io_exponents(self):
+        """``k[i,j]`` carries the units of control ``i`` over measurement ``j``."""
+        i, j = np.divmod(np.arange(self.nu * self.ny), self.ny)
+        return np.eye(self.nu)[i], np.eye(self.ny)[j]
 
 
 def _unit_derivatives(block, idx):
@@ -191,6 +217,12 @@ class PID2(Block):
         return (np.diag(A).reshape(n, n), np.asarray(B, float).reshape(n, 2), np.asarray(C, float).reshape(1, n),
                 np.asarray(D, float))
 
+    def io_exponents(self):
+        """``kp``, ``ki``, ``kd`` carry the units of the output over the inputs (``r`` and ``y`` share one
+        unit, half each); ``tf``, ``b``, ``c`` are unit-free."""
+        gain = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])[:, None]
+        return gain * np.ones((1, 1)), gain * np.full((1, 2), 0.5)
+
     def matrix_derivatives(self, theta, idx):
         """Exact d(A, B, C, D)/d theta_i of the realisation in :meth:`matrices` (checked against central
         differences in the tests): the tuner asks for them at every SLSQP callback."""
@@ -237,6 +269,11 @@ class PID(Block):
         A, B, C, D = self._inner.matrices(np.r_[np.asarray(theta, float), 1.0, 1.0])
         return A, B[:, :1], C, D[:, :1]
 
+    def io_exponents(self):
+        """``kp``, ``ki``, ``kd`` carry the units of the output over the input; ``tf`` is unit-free."""
+        gain = np.array([1.0, 1.0, 1.0, 0.0])[:, None]
+        return gain.copy(), gain.copy()
+
     def matrix_derivatives(self, theta, idx):
         d = self._inner.matrix_derivatives(np.r_[np.asarray(theta, float), 1.0, 1.0], idx)
         return [(dA, dB[:, :1], dC, dD[:, :1]) for dA, dB, dC, dD in d]
@@ -266,6 +303,14 @@ class FixedOrderSS(Block):
             params += [Param(f"{tag}[{i},{j}]", float(M[i, j])) for i in range(M.shape[0]) for j in range(M.shape[1])]
         self._n = n
         super().__init__(name, params, ny, nu, n, dt)
+
+    def io_exponents(self):
+        """A is unit-free (its state's units are the controller's own choice: B takes the inputs' units and C
+        the outputs', so ``diag(a) K diag(c)`` is ``(A, B diag(c), diag(a) C, diag(a) D diag(c))``)."""
+        n, ny, nu = self._n, self.ny, self.nu
+        eu = [np.zeros((n * n + n * ny, nu)), np.repeat(np.eye(nu), n, axis=0), np.repeat(np.eye(nu), ny, axis=0)]
+        ey = [np.zeros((n * n, ny)), np.tile(np.eye(ny), (n, 1)), np.zeros((nu * n, ny)), np.tile(np.eye(ny), (nu, 1))]
+        return np.vstack(eu), np.vstack(ey)
 
     def matrices(self, theta):
         n, ny, nu = self._n, self.ny, self.nu
@@ -362,6 +407,18 @@ class Structure:
             ix, iy, iu = ix + b.nx, iy + b.ny, iu + b.nu
         self._mcache = (key, (A, B, C, D))
         return A, B, C, D
+
+    def io_exponents(self):
+        """:meth:`Block.io_exponents` of every parameter against the whole controller's outputs (``nu``) and
+        inputs (``ny``): arrays ``(nparams, nu)`` and ``(nparams, ny)``."""
+        n = len(self.params)
+        eu, ey = np.zeros((n, self.nu)), np.zeros((n, self.ny))
+        iy = iu = 0
+        for b, sl in zip(self.blocks, self._slices):
+            bu, by = b.io_exponents()
+            eu[sl, iu:iu + b.nu], ey[sl, iy:iy + b.ny] = bu, by
+            iy, iu = iy + b.ny, iu + b.nu
+        return eu, ey
 
     def matrix_derivatives(self, theta, free: np.ndarray):
         """d(A, B, C, D)/d theta_i of the whole controller for each free index, stacked: four arrays with a

@@ -50,9 +50,22 @@ closed-loop mode damped to 2e-4, where Nelder-Mead still descended). Gradient sa
 uses there: it needs no knowledge of which peaks are active, only gradients near x, and it converges to
 Clarke-stationary points with probability one; its cost, ``n + 1`` exact norms per step, is paid only after
 BFGS has stopped (benchmarks/bench_hinfstruct.py and benchmarks/compleib.py have the numbers; the cascade
-tuner, whose objective is a grid search over ten goals, skips it to keep a start under a second). Random
-starts are random controllers of log-uniformly drawn size (three decades), each made stabilising by phase
-one, and run through the project's executor.
+tuner, whose objective is a grid search over ten goals, skips it to keep a start under a second).
+
+Units. The optimiser's variables are the parameters divided by a unit chosen from the plant, never from a
+fixed size or the start: a parameter that carries the units of the plant's signals (static gains, PID gains,
+B, C, D of state-space blocks, :meth:`rotorlab.tune.blocks.Block.io_exponents`) is measured in
+``1 / (gu_i gy_j)``, where ``gu``, ``gy`` are sizes of the controls and measurements fitted to the log-magnitude of
+``P22`` at the frequencies where the open-loop performance is large (:func:`_plant_units`); time constants and the like
+keep a unit of their own. Rescaling any control or measurement of P by a positive factor, with the controller mapped
+back, leaves every variable, gradient, trust region, random start and stopping test the same, so the path and the result
+change only by round-off (tests/test_tune_hinfstruct_scaling.py, benchmarks/bench_hinf_scaling.py); where a start creeps
+until its iteration budget runs out, round-off can still grow into another end point, as it can between CPUs
+(docs/hinfstruct-units.md). The stopping tests are relative to gamma and to the iterate's size (:func:`relative_slope`),
+so they do not depend on a constant factor of the performance channels either. Random starts are random controllers in
+those variables whose rms size is drawn log-uniformly over the loop gains at which the normalised ``P22`` crosses 1 in
+the band of the plant's modes (at least three decades, up to 1000 units: :func:`_variable_scale`), each made stabilising
+by phase one, and run through the project's executor.
 
 The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
 goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
@@ -72,14 +85,14 @@ from collections.abc import Sequence
 
 import control as ct
 import numpy as np
-from scipy.optimize import minimize, nnls
+from scipy.optimize import minimize, minimize_scalar, nnls
 
 from rotorlab import lti
 from rotorlab.executor import map_tasks, task_seeds
 from rotorlab.tune.blocks import Block, StaticGain, Structure
 
 __all__ = ["Channel", "HinfstructResult", "hinfstruct", "closed_loop", "NotStabilisableError",
-           "StabilisationError", "StartFailure", "run_starts"]
+           "StabilisationError", "StartFailure", "run_starts", "relative_slope"]
 
 
 # hard goals are enforced at this level inside the QP so that the verified value lands below 1 despite the
@@ -102,6 +115,8 @@ PENALTY = 10.0
 # gradient-sampling radii (relative to the rms size of the scaled variables) and iterations per round
 GS_RADII = (1e-3, 1e-4, 1e-5, 1e-6)
 GS_ROUND = 300
+# peaks within this fraction of gamma count as active in the reported stationarity (HinfstructResult.slope)
+SLOPE_BAND = 1e-3
 
 
 class NotStabilisableError(ValueError):
@@ -483,10 +498,20 @@ class _Problem:
     """Shared state of one optimisation: controller structure, channels and stability plants."""
 
     def __init__(self, structure: Structure, channels: Sequence[Channel], stab: Sequence[tuple], free,
-                 scale, stab_margin=1e-6, poles=None):
+                 scale, stab_margin=1e-6, poles=None, relative_stop=False, start_decades=(-1.5, 1.5)):
         self.s, self.channels, self.stab = structure, list(channels), list(stab)
         self.free = np.asarray(free, bool)
         self.scale = np.asarray(scale, float)
+        # stopping tests relative to the iterate's size and the objective (hinfstruct: gamma is in the units of
+        # the plant's w and z); the cascade's goals are normalised to 1 and its variables relative to its
+        # initial gains, where the tests keep their absolute form
+        self.relative_stop = bool(relative_stop)
+        # the range of random starts' rms size in the scaled variables, log10 (hinfstruct: from the plant)
+        self.start_decades = tuple(start_decades)
+        # the tangent program keeps the closed-loop eigenvalues this much inside the stability test's own margin:
+        # its solutions land on their constraints, where the test would otherwise be decided by round-off (and
+        # a plant written in other units could take another path)
+        self.qp_margin = stab_margin if relative_stop else 0.0
         self.theta0 = structure.values
         self.stab_margin = stab_margin
         self.poles = poles  # (min_decay, min_damping) or None
@@ -790,7 +815,7 @@ class _Subproblem:
                 rows.append(z[nx] - v)            # t - v
             if prob.is_hard[ci]:
                 rows.append(HARD_BOUND - v)
-        return np.concatenate(rows + [eig])
+        return np.concatenate(rows + [eig - prob.qp_margin])
 
     def jac(self, z):
         key = z[:self.nx].tobytes()
@@ -875,7 +900,7 @@ def _sqp(prob: _Problem, x, m, lo, hi, *, max_iter, tol, deadline, history, sub_
             delta *= 0.3
         history.append(m[1])
         viol.append(m[0])
-        if (pred < tol and m[0] <= 1e-9) or delta < 1e-6:
+        if (pred < tol and m[0] <= 1e-9) or delta < 1e-6 * (_rms(x, 1.0) if prob.relative_stop else 1.0):
             break
         if m[0] > 1e-9 and len(viol) > INFEASIBLE_WINDOW and viol[-1] > 0.8 * viol[-1 - INFEASIBLE_WINDOW]:
             # hard goals violated and the linearised constraints no longer reduce the violation (the steps
@@ -934,6 +959,37 @@ def _min_norm_hull(G):
     return G @ _hull_weights(G)
 
 
+def relative_slope(G, x, f) -> float:
+    """Relative Clarke stationarity: ``||h|| max(||x||, 1) / |f|`` with ``h`` the smallest vector of the convex
+    hull of the gradients ``G`` (nx, k) at ``x`` (nearby points or active peaks): the relative decrease of ``f``
+    that a step of the iterate's own size would give along the best direction, to first order. It is the same
+    number when ``f`` is multiplied by a constant (units of the performance signals) and, with the plant-derived
+    variables of :func:`hinfstruct`, when the plant's controls or measurements are rescaled; zero exactly at a
+    Clarke-stationary point of the max function. The floor of one scaled unit keeps it meaningful at
+    ``x = 0``.
+
+    Examples
+    --------
+    Two active pieces with gradients (1, 2) and (-1, 2) at x = (0, 1), f = 2: the shortest hull vector is
+    (0, 2), so a step of the iterate's size lowers f by 2 * 1 / 2 = 100 % to first order:
+
+    >>> import numpy as np
+    >>> relative_slope(np.array([[1.0, -1.0], [2.0, 2.0]]), np.array([0.0, 1.0]), 2.0)
+    1.0
+    """
+    return float(np.linalg.norm(_min_norm_hull(G)) * max(float(np.linalg.norm(x)), 1.0)
+                 / max(abs(float(f)), 1e-300))
+
+
+def _stationary(G, x, f, tol, relative) -> bool:
+    """HANSO's stopping test on the gradients ``G`` near ``x``: :func:`relative_slope` below ``tol`` when
+    ``relative``, else the absolute ``||h|| <= tol max(1, |f|)`` (the stabilisation phase, whose objective is
+    the spectral abscissa near zero, and the cascade, whose goals are normalised)."""
+    if relative:
+        return relative_slope(G, x, f) <= tol
+    return bool(np.linalg.norm(_min_norm_hull(G)) <= tol * max(1.0, abs(f)))
+
+
 def _inv_bfgs_update(H, s, y, sy):
     """BFGS update of the inverse-Hessian approximation ``H`` for the step ``s`` and gradient change ``y``
     (``sy = s @ y > 0``, checked by the caller with its own curvature guard)."""
@@ -942,16 +998,22 @@ def _inv_bfgs_update(H, s, y, sy):
     return H - r * (np.outer(s, Hy) + np.outer(Hy, s)) + (r * r * float(y @ Hy) + r) * np.outer(s, s)
 
 
+def _rms(x, floor=0.0) -> float:
+    """Root-mean-square size of ``x``, at least ``floor``."""
+    return max(float(np.sqrt(np.mean(np.square(x)))) if np.size(x) else 0.0, floor)
+
+
 def _stalled(track, window, f, tol) -> bool:
     """The merit ``f`` fell by no more than ``0.1 tol`` (relative) over the last ``window`` iterations."""
     return len(track) > window and track[-window - 1] - f <= 0.1 * tol * max(abs(f), 1e-300)
 
 
-def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None):
+def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None, relative=False):
     """BFGS on a nonsmooth, locally Lipschitz function with weak Wolfe steps (Lewis & Overton). Stops when
     ``f < target``, when the smallest vector in the convex hull of the gradients at the recent iterates
-    within a small radius is below ``tol * max(1, |f|)`` (HANSO's test), when the line search finds no
-    decrease, or when the last ``max(20, 3 n)`` iterations together gained less than ``tol / 10``."""
+    within a small radius passes :func:`_stationary` (HANSO's test, relative to ``|x|`` and ``|f|`` when
+    ``relative``), when the line search finds no decrease, or when the last ``max(20, 3 n)`` iterations
+    together gained less than ``tol / 10``."""
     n = x.size
     H = np.eye(n)
     scaled = False
@@ -980,14 +1042,14 @@ def _bfgs(fg, x, f, g, *, max_iter, tol, deadline, history, target=None):
             H = _inv_bfgs_update(H, s, y, sy)
         radius = 1e-4 * max(1.0, np.linalg.norm(x))
         near = [(xi, gi) for xi, gi in near if np.linalg.norm(xi - x) <= radius][-n:] + [(x, g)]
-        if np.linalg.norm(_min_norm_hull(np.column_stack([gi for _, gi in near]))) <= tol * max(1.0, abs(f)):
+        if _stationary(np.column_stack([gi for _, gi in near]), x, f, tol, relative):
             break
         if _stalled(track, window, f, tol):
             break
     return x, f, g
 
 
-def _gradient_sampling(fg, x, f, g, *, rng, max_iter, tol, deadline, history, radii=GS_RADII):
+def _gradient_sampling(fg, x, f, g, *, rng, max_iter, tol, deadline, history, radii=GS_RADII, relative=False):
     """Gradient sampling (Burke, Lewis & Overton 2005; HANSO's second phase) with a BFGS metric and sample
     reuse (Curtis & Que 2013), for the points where BFGS stalls.
 
@@ -996,8 +1058,8 @@ def _gradient_sampling(fg, x, f, g, *, rng, max_iter, tol, deadline, history, ra
     and at ``x`` itself are combined into the smallest vector of their convex hull in the metric of the BFGS
     matrix ``H``; ``-H`` times it is a descent direction for every nearby piece of the max function at once,
     which a single gradient (BFGS) is not at a kink. A backtracking Armijo step follows. The radius shrinks
-    through ``radii`` (relative to the rms size of x, at least one scaled unit) when the sampled hull holds a
-    vector shorter than ``tol * max(1, |f|)`` (approximate Clarke stationarity, HANSO's test), when no step
+    through ``radii`` (relative to the rms size of x, at least one scaled unit) when the sampled hull passes
+    :func:`_stationary` (approximate Clarke stationarity, HANSO's test), when no step
     decreases f, or when the last ``max(20, 3 n)`` steps together gained less than ``tol / 10``."""
     n = x.size
     H = np.eye(n)
@@ -1020,7 +1082,7 @@ def _gradient_sampling(fg, x, f, g, *, rng, max_iter, tol, deadline, history, ra
                     if np.isfinite(fp):
                         pool.append((p, gp))
             G = np.column_stack([g] + [gp for _, gp in pool])
-            if np.linalg.norm(_min_norm_hull(G)) <= tol * max(1.0, abs(f)):
+            if _stationary(G, x, f, tol, relative):
                 break
             try:
                 L = np.linalg.cholesky(H)
@@ -1116,7 +1178,7 @@ def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadlin
         if sampling and len(history) <= cap:
             f, g = fg(x)
             xg, f, g = _gradient_sampling(fg, x, f, g, rng=rng, max_iter=min(GS_ROUND, cap + 1 - len(history)),
-                                          tol=tol, deadline=deadline, history=history)
+                                          tol=tol, deadline=deadline, history=history, relative=prob.relative_stop)
             mg = prob.merit(prob.theta(xg))
             if not _better(m, mg):
                 x, m = xg, mg
@@ -1131,7 +1193,7 @@ def _hybrid(prob: _Problem, theta_start, lower, upper, *, max_iter, tol, deadlin
         if len(history) <= cap:
             f, g = fg(x)
             xb, f, g = _bfgs(fg, x, f, g, max_iter=min(max(BFGS_ROUND, 10 * x.size), cap + 1 - len(history)),
-                             tol=tol, deadline=deadline, history=history)
+                             tol=tol, deadline=deadline, history=history, relative=prob.relative_stop)
             mb = prob.merit(prob.theta(xb))
             if not _better(m, mb):
                 x, m = xb, mb
@@ -1199,9 +1261,9 @@ def _fixed_modes(prob: _Problem, theta, rng, tol=1e-6):
                 out.append((complex(lam), "not observable from y (PBH rank test)"))
         lam_t = np.linalg.eigvals(_cl_A(part, *Km))
         samples = []
-        for mag in (0.1, 3.0, 100.0):
+        for mag in (0.1, 3.0, 100.0):  # scaled units: loop gains of every order that matters
             th = np.asarray(theta, float).copy()
-            th[prob.free] = mag * rng.standard_normal(prob.free.sum())
+            th[prob.free] = mag * rng.standard_normal(prob.free.sum()) * prob.scale
             try:
                 samples.append(np.linalg.eigvals(_cl_A(part, *prob.s.matrices(th))))
             except (ValueError, np.linalg.LinAlgError):
@@ -1293,14 +1355,14 @@ def _perturbed_start(prob: _Problem, theta0, rng, spread, lower, upper):
     return np.clip(th, lower, upper)
 
 
-def _scaled_start(prob: _Problem, theta0, rng, lower, upper, decades=(-1.5, 1.5)):
+def _scaled_start(prob: _Problem, theta0, rng, lower, upper):
     """A random controller of random size: a Gaussian direction in the scaled variables with an rms size drawn
-    log-uniformly over ``decades`` around the size of ``theta0`` (one scaled unit when theta0 is zero); the
-    stabilisation phase then makes it stabilising."""
+    log-uniformly over ``prob.start_decades`` around the size of ``theta0`` (one scaled unit when theta0 is
+    smaller); the stabilisation phase then makes it stabilising."""
     th = theta0.copy()
     f = prob.free
-    ref = max(float(np.sqrt(np.mean(prob.x_of(theta0) ** 2))), 1.0)
-    size = ref * 10.0 ** rng.uniform(*decades)
+    ref = _rms(prob.x_of(theta0), 1.0)
+    size = ref * 10.0 ** rng.uniform(*prob.start_decades)
     th[f] = rng.standard_normal(f.sum()) * size * prob.scale
     return np.clip(th, lower, upper)
 
@@ -1350,6 +1412,13 @@ class HinfstructResult:
 
     ``gamma`` is the closed-loop H-inf norm computed exactly (SLICOT ab13dd via ``rotorlab.lti.hinfnorm``)
     on the returned controller; ``starts`` holds the verified gamma of every start (inf when a start failed).
+    ``slope`` is the relative stationarity of the returned controller (:func:`relative_slope` over the
+    gradients of every frequency peak within :data:`SLOPE_BAND` of gamma, in the plant-derived variables):
+    the relative decrease of gamma that a step of the gains' own size would give along the best direction, to
+    first order; it means the same whatever the units of the plant's signals, and is zero at a
+    Clarke-stationary point whose active set is a few isolated peaks. Where the closed loop's gain is flat over a
+    band (a full-order optimum is all-pass) no finite set of peaks represents it and ``slope`` stays large at
+    the optimum; ``stationarity``, the tangent program's last predicted relative decrease, is the measure there.
     """
 
     gamma: float
@@ -1361,8 +1430,102 @@ class HinfstructResult:
     structure: Structure
     w_peak: float
     stationarity: float = np.nan  # tangent-program predicted relative decrease at the best start's end point
+    slope: float = np.nan         # relative Clarke stationarity of the returned controller
     start_times_s: list = dataclasses.field(default_factory=list)  # wall seconds per start
     start_cpu_s: list = dataclasses.field(default_factory=list)    # CPU seconds per start (its own process)
+
+
+def _plant_band(A, dt, npoints=64):
+    """Frequencies (rad/s) that span the plant's modes: a log grid from the smallest to the largest nonzero
+    eigenvalue magnitude of A (continuous equivalents when discrete, below Nyquist); a decade either side
+    of a single mode, 0.01-100 rad/s without states."""
+    ev = np.abs(np.linalg.eigvals(A)) if A.shape[0] else np.zeros(0)
+    if dt:
+        ev = np.abs(np.log(np.maximum(ev, 1e-300))) / dt
+    ev = ev[np.isfinite(ev) & (ev > 1e-9 * max(ev.max(initial=0.0), 1e-300))]
+    lo, hi = (ev.min(), ev.max()) if ev.size else (1e-2, 1e2)
+    if hi < 1.5 * lo:
+        lo, hi = lo / 10, hi * 10
+    if dt:
+        hi = min(hi, 0.9 * np.pi / dt)
+        lo = min(lo, hi / 10)
+    return np.logspace(np.log10(lo), np.log10(hi), npoints)
+
+
+def _plant_units(P, nmeas, ncon):
+    """Sizes of the plant's controls and measurements, from ``P22`` (u -> y) at the frequencies that matter.
+
+    ``log|P22_ji(jw)|`` is averaged over :func:`_plant_band` with weights proportional to the open-loop
+    performance gain ``sigma_max(P11(jw))`` (where the disturbances show in the performance outputs: a lightly
+    damped structure's resonances, an unstable or slow mode's low frequencies; uniform where ``P11`` is zero),
+    and fitted by least squares as ``log gy_j + log gu_i`` over the entries that are not structurally zero. A
+    controller gain ``K_ij`` then closes a loop of about ``|K_ij| gy_j gu_i`` where the performance is at stake,
+    and ``1 / (gu_i gy_j)`` is its natural unit. ``P11`` does not depend on the units of u and y, and the weights are
+    normalised, so they do not depend on a common factor of w or z either. The split between ``gu`` and ``gy`` (a
+    controller state's own units) is fixed by the mean of ``log gu`` equal to the mean log column norm of ``B2``. Every
+    step is equivariant: rescaling control ``i`` by ``a_i`` and measurement ``j`` by ``c_j`` multiplies ``gu_i`` by
+    ``a_i`` and ``gy_j`` by ``c_j``, to round-off. Returns ``(log gu, log gy, sigma)`` with ``sigma`` the largest
+    singular value of the normalised ``diag(1/gy) P22 diag(1/gu)`` at each band frequency."""
+    A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
+    nz, nw = C.shape[0] - nmeas, B.shape[1] - ncon
+    B2 = B[:, nw:]
+    dt = float(P.dt) if lti.is_discrete(P) else 0.0
+    w = _plant_band(A, dt)
+    if A.shape[0]:
+        pts = np.exp(1j * w * dt) if dt else 1j * w
+        Pf = C @ np.linalg.solve(pts[:, None, None] * np.eye(A.shape[0]) - A,
+                                 np.broadcast_to(B, (w.size,) + B.shape)) + D
+    else:
+        Pf = np.broadcast_to(D, (w.size,) + D.shape).astype(complex)
+    G = Pf[:, nz:, nw:]
+    s11 = np.linalg.svd(Pf[:, :nz, :nw], compute_uv=False)[:, 0]
+    wt = s11 / s11.sum() if np.isfinite(s11.sum()) and s11.sum() > 0 else np.full(w.size, 1.0 / w.size)
+    mag = np.abs(G)                                                      # (nf, ny, nu)
+    rms = np.sqrt(np.mean(mag**2, axis=0))
+    # structurally zero entries (no path u_i -> y_j) hold only round-off; a zero of a real entry on the grid
+    # is floored at a tiny fraction of that entry's own size, which scales with it
+    keep = rms > 1e-10 * np.sqrt(rms.max(axis=1, keepdims=True) * rms.max(axis=0, keepdims=True))
+    logm = np.einsum("f,fji->ji", wt, np.log(np.maximum(mag, np.maximum(1e-12 * rms, 1e-300))))
+    j, i = np.nonzero(keep)
+    lgu, lgy = np.zeros(ncon), np.zeros(nmeas)
+    if j.size:
+        M = np.zeros((j.size, ncon + nmeas))
+        M[np.arange(j.size), i] = 1.0
+        M[np.arange(j.size), ncon + j] = 1.0
+        sol = np.linalg.lstsq(M, logm[j, i], rcond=None)[0]
+        lgu, lgy = sol[:ncon], sol[ncon:]
+        bn = np.linalg.norm(B2, axis=0)
+        has = bn > 0
+        t = float(np.mean(np.log(bn[has]) - lgu[has])) if has.any() else 0.0
+        lgu, lgy = lgu + t, lgy - t
+    Gs = G * np.exp(-lgy)[None, :, None] * np.exp(-lgu)[None, None, :]
+    sigma = np.linalg.svd(Gs, compute_uv=False)[:, 0] if min(Gs.shape[1:]) else np.ones(w.size)
+    return lgu, lgy, sigma
+
+
+def _variable_scale(S: Structure, P, nmeas, ncon, theta0, free):
+    """Scale of each free parameter (the optimiser's variables are ``theta / scale``) and the log10 range of
+    the random starts' rms size in those variables.
+
+    Parameters that carry the units of the plant's signals (:meth:`Structure.io_exponents`: gains of PIDs,
+    static gains, B, C, D of state-space blocks) get the natural unit of :func:`_plant_units`, which does not
+    depend on the start or on the units the plant is written in; the others (time constants, set-point
+    weights, A of state-space blocks) keep a unit of their own start value, at least a tenth of the largest
+    of them and of 1. The random starts' rms size spans the loop gains from where the normalised ``P22`` first
+    crosses 1 in the band of the plant's modes (its 90 % quantile; within 0.1..10 units) up to where it has
+    crossed 1 almost everywhere (10 % quantile), at least three decades and at most 1000 units: smaller
+    controllers act like none, which the start from the blocks' values (zero by default) already covers, and
+    the optimum of a demanding performance channel lies at loop gains well above one."""
+    lgu, lgy, sigma = _plant_units(P, nmeas, ncon)
+    eu, ey = S.io_exponents()
+    io = np.any(eu != 0, axis=1) | np.any(ey != 0, axis=1)
+    th = np.abs(np.asarray(theta0, float))
+    other = free & ~io
+    ref = max(float(th[other].max()) if other.any() else 0.0, 1.0)
+    scale = np.where(io, np.exp(-(eu @ lgu + ey @ lgy)), np.maximum(th, 0.1 * ref))
+    q10, q90 = np.quantile(np.log10(np.maximum(sigma, 1e-300)), [0.1, 0.9])
+    lo = float(np.clip(-q90, -1.0, 1.0))
+    return scale[free], (lo, float(np.clip(-q10, lo + 3.0, 3.0)))
 
 
 def _as_structure(controller, nmeas, ncon, dt) -> Structure:
@@ -1396,7 +1559,8 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
         Number of measurements y (last outputs of P) and controls u (last inputs of P).
     starts : int
         Number of starts: the blocks' current values plus ``starts - 1`` seeded random controllers whose
-        size is drawn log-uniformly over three decades around the start's size.
+        size is drawn log-uniformly over the decades of loop gain that the plant makes plausible (module
+        docstring, "Units"), around the start's size when that is larger.
     seed : int or numpy.random.Generator seed
     n_jobs : int
         Local worker processes for the starts when no ``executor`` is given (blocks must then pickle: no
@@ -1404,8 +1568,9 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     executor : rotorlab.executor.Executor, optional
         Runs the starts (``executor.map``); results do not depend on it.
     tol : float
-        Stationarity tolerance: the optimiser stops when the tangent program over every active peak frequency
-        predicts less than this relative decrease of gamma.
+        Stationarity tolerance, relative: the optimiser stops when the tangent program over every active peak
+        frequency predicts less than this relative decrease of gamma, or when the relative slope
+        (:func:`relative_slope`) of the gradients near the iterate is below it.
     time_limit_s : float, optional
         Wall-clock budget per start (s).
     bounds : dict, optional
@@ -1416,6 +1581,7 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     Returns
     -------
     HinfstructResult
+        With ``slope``, the relative stationarity of the returned controller (the same in any units).
 
     Raises
     ------
@@ -1436,6 +1602,14 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     >>> k = res.controller.D.item()
     >>> bool(k < -1), round(res.gamma, 3)          # stabilising (1 + k < 0), and the optimal gamma
     (True, 1.0)
+
+    ``x' = -x + w + u``, ``z = [x; 0.5 u]``, ``y = x``: the optimal static gain is -4 (closed form
+    ``-1/(rho^2 a)``) with gamma ``sqrt(5)/5``, in any units of u and y:
+
+    >>> P = ct.ss([[-1.0]], [[1.0, 1.0]], [[1.0], [0.0], [1.0]], [[0, 0], [0, 0.5], [0, 0]])
+    >>> r = tune.hinfstruct(P, "static", 1, 1)
+    >>> round(r.gamma, 4), round(r.params["K.k[0,0]"], 3), r.slope < 1e-3
+    (0.4472, -4.0, True)
     """
     P = lti.as_ss(P)
     for tag, M in zip("ABCD", (P.A, P.B, P.C, P.D)):
@@ -1465,9 +1639,9 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     free = ~fixed
     if not free.any():
         raise ValueError("every controller parameter is fixed: nothing to tune")
-    scale = np.maximum(np.abs(theta0[free]), 0.1 * max(np.max(np.abs(theta0[free])), 1.0))
+    scale, decades = _variable_scale(S, P, nmeas, ncon, theta0, free)
     ch = Channel(P, nmeas, ncon, name="hinf", exact_peak=True)
-    prob = _Problem(S, [ch], [(P, nmeas, ncon)], free, scale)
+    prob = _Problem(S, [ch], [(P, nmeas, ncon)], free, scale, relative_stop=True, start_decades=decades)
     results = run_starts(prob, theta0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, executor=executor,
                          max_iter=max_iter, tol=tol, time_limit_s=time_limit_s, progress=progress)
     verified, failures = [], []
@@ -1487,9 +1661,33 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     S.set_values(th)
     return HinfstructResult(gamma=float(g), controller=S.ss(th), params=dict(zip(names, map(float, th))),
                             history=list(map(float, hist)), starts=[float(x) for x in gammas], success=True,
-                            structure=S, w_peak=float(wpk), stationarity=float(pred),
+                            structure=S, w_peak=float(wpk), stationarity=float(pred), slope=_slope(prob, th),
                             start_times_s=[float(v[5][0]) for v in verified],
                             start_cpu_s=[float(v[5][1]) for v in verified])
+
+
+def _slope(prob: _Problem, theta) -> float:
+    """:func:`relative_slope` at ``theta`` over the gradients of the peaks within :data:`SLOPE_BAND` of the
+    largest (the active set of the max function, nearly equal peaks included). Every local peak within 10 %
+    is first located to 1e-9 in log frequency (bounded Brent search in its bracket), so which peaks count and
+    their gradients (Danskin: the gradient at the peak's frequency) do not depend on grid round-off."""
+    ch = prob.channels[0]
+
+    def value(logw):
+        return float(prob.evaluate_points(theta, prob.points([(0, np.array([np.exp(logw)]))]))[0][0][0])
+
+    peaks = prob.all_peaks(theta)[0]
+    found = []
+    for v, wk in peaks:
+        if v < 0.9 * peaks[0][0]:
+            continue
+        lo, hi = np.log(max(wk / 1.02, ch.lo)), np.log(min(wk * 1.02, ch.hi))
+        r = minimize_scalar(lambda lw: -value(lw), bounds=(lo, hi), method="bounded", options={"xatol": 1e-9})
+        found.append((-r.fun, r.x) if -r.fun > v else (v, np.log(wk)))
+    top = max(v for v, _ in found)
+    w = np.unique(np.exp([lw for v, lw in found if v >= (1.0 - SLOPE_BAND) * top]))
+    G = prob.evaluate_points(theta, prob.points([(0, w)]), grad=True)[1][0] * prob.scale[:, None]
+    return relative_slope(G, prob.x_of(theta), top)
 
 
 def _raise_unstabilised(failures, nstarts):
