@@ -8,10 +8,10 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import time  # noqa: E402
 import tomllib  # noqa: E402
 
 import control as ct  # noqa: E402
+from timing import Clock  # noqa: E402
 
 from rotorlab.autopilots import px4  # noqa: E402
 from rotorlab.tune.autopilot import axis_plant, px4_autotune_params, tune_autopilot  # noqa: E402
@@ -25,21 +25,6 @@ MODELS = {  # rate per unit normalised torque, delay (s)
     "pitch": (ct.tf([100.0], [1 / MOTOR, 1.0, 0.0]), 0.028),
     "yaw": (ct.tf([25.0], [1 / MOTOR**2, 2 / MOTOR, 1.0]) * ct.tf([1.0], [1.0, 0.4]), 0.026),
 }
-
-
-class Clock:
-    def __enter__(self):
-        self.w, t = time.perf_counter(), os.times()
-        self.c = t.user + t.system + t.children_user + t.children_system
-        return self
-
-    def __exit__(self, *exc):
-        t = os.times()
-        self.wall = time.perf_counter() - self.w
-        self.cpu = t.user + t.system + t.children_user + t.children_system - self.c
-
-    def __str__(self):
-        return f"{self.wall:6.2f} s wall, {self.cpu:6.2f} s CPU"
 
 
 def main():

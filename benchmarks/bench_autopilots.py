@@ -25,11 +25,10 @@ import statistics
 import sys
 import time
 
-import mujoco
+from timing import raw_step_s
 
 from rotorlab.sim.control.autopilot import AutopilotSpec
 from rotorlab.sim.runner import run_scenario
-from rotorlab.sim.simulator import Simulator
 
 VEHICLE = "tuhh-quad"
 REFERENCE_VEHICLE = "anteos-p2a2"  # the 50 Hz cascade of the "0.8x today"
@@ -46,16 +45,7 @@ def _closed(vehicle: str, controller) -> tuple[float, int]:
 
 
 def _raw(vehicle: str, sensors: bool = True) -> float:
-    sim = Simulator("free-flight", vehicle, sensor_noise=False)
-    m, d = sim.model, sim.data
-    if not sensors:
-        m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
-    nstep = int(round(DURATION_S / m.opt.timestep))
-    t0 = time.process_time()
-    mujoco.mj_step(m, d, nstep=nstep)
-    dt = time.process_time() - t0
-    assert d.qpos[2] > 1.0, f"the raw run reached the floor (z = {d.qpos[2]:.2f} m)"
-    return dt
+    return raw_step_s(vehicle, DURATION_S, sensors)
 
 
 #: name -> (vehicle, controller, what)

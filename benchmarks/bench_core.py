@@ -29,11 +29,10 @@ the closed loop actually runs, and the closed loop's speed against it.
 import statistics
 import time
 
-import mujoco
+from timing import raw_step_s
 from tqdm import tqdm
 
 from rotorlab.sim.runner import run_scenario
-from rotorlab.sim.simulator import Simulator
 
 VEHICLE = "anteos-p2a2"
 DURATION_S = 30.0
@@ -49,17 +48,7 @@ def _closed(name: str, **options) -> float:
 
 
 def _raw(sensors: bool = True) -> float:
-    sim = Simulator("free-flight", VEHICLE, sensor_noise=False)
-    m, d = sim.model, sim.data
-    if not sensors:
-        m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
-    nstep = int(round(DURATION_S / m.opt.timestep))
-    t0 = time.process_time()
-    mujoco.mj_step(m, d, nstep=nstep)
-    dt = time.process_time() - t0
-    # held at the hover trim it stays airborne: no contacts that would make the raw steps dearer
-    assert d.qpos[2] > 1.0, f"the raw run reached the floor (z = {d.qpos[2]:.2f} m)"
-    return dt
+    return raw_step_s(VEHICLE, DURATION_S, sensors)
 
 
 # in run order: each target ratio's two runs are neighbours (main)

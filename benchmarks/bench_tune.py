@@ -14,11 +14,11 @@ import os
 # one BLAS thread per process: the tuner's matrices are tiny and the multi-start runs one process per core
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import time  # noqa: E402
 
 import control as ct  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.optimize import minimize  # noqa: E402
+from timing import Clock  # noqa: E402
 
 from rotorlab import lti
 from rotorlab.gains import load_gains  # noqa: E402
@@ -27,23 +27,6 @@ from rotorlab.tune.goals import evaluate, objective, tune_cascade  # noqa: E402
 from rotorlab.tune.hinfstruct import hinfstruct  # noqa: E402
 from rotorlab.tune.spec import load_spec  # noqa: E402
 from rotorlab.vehicles import load_vehicle  # noqa: E402
-
-
-class Clock:
-    """Wall and CPU seconds of a block (CPU includes worker processes that have exited)."""
-
-    def __enter__(self):
-        self.w, t = time.perf_counter(), os.times()
-        self.c = t.user + t.system + t.children_user + t.children_system
-        return self
-
-    def __exit__(self, *exc):
-        t = os.times()
-        self.wall = time.perf_counter() - self.w
-        self.cpu = t.user + t.system + t.children_user + t.children_system - self.c
-
-    def __str__(self):
-        return f"{self.wall:6.2f} s wall, {self.cpu:6.2f} s CPU"
 
 
 def cascade():
