@@ -4,10 +4,7 @@
 import os
 import time
 
-import mujoco
 import numpy as np
-
-from rotorlab.sim.simulator import Simulator
 
 
 def best_wall_s(fn, repeat: int = 1):
@@ -24,6 +21,11 @@ def best_wall_s(fn, repeat: int = 1):
 def raw_step_s(vehicle: str, duration_s: float, sensors: bool = True) -> float:
     """CPU seconds of ``duration_s`` of bare ``mj_step`` on ``vehicle``'s free-flight model from its hover
     keyframe (no flight software, no Python between steps): the baseline the per-tick ratios divide by."""
+    # imported here: the identification and tuning benchmarks use this module without MuJoCo or the simulator
+    import mujoco
+
+    from rotorlab.sim.simulator import Simulator
+
     sim = Simulator("free-flight", vehicle, sensor_noise=False)
     m, d = sim.model, sim.data
     if not sensors:
