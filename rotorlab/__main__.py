@@ -1,5 +1,3 @@
-import sys
+from rotorlab.cli import console
 
-from rotorlab.cli import main
-
-sys.exit(main())
+console()

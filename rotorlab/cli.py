@@ -189,5 +189,20 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(sig, handler)
 
 
+def console(argv: list[str] | None = None) -> None:
+    """The ``rotorlab`` command: :func:`main`, then exit with its status. After an interrupt that stopped a
+    process pool's workers mid-task the process ends at once (``os._exit``, output flushed first): the
+    interpreter's exit would join the pool's manager thread, which can wait for ever on half a result
+    (:meth:`rotorlab.executor.LocalExecutor._terminate`). Completed stages and logs are already on disk."""
+    from rotorlab import executor
+
+    rc = main(argv)
+    if executor.ABANDONED_POOLS:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(rc)
+    sys.exit(rc)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    console()

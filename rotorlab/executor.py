@@ -122,6 +122,10 @@ def _worker_init(parent_pid: int) -> None:
     signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
+#: process pools whose workers were stopped mid-task (Ctrl-C, SIGTERM) in this process
+ABANDONED_POOLS = 0
+
+
 class LocalExecutor(Executor):
     """Process pool on this machine. Forked workers (Linux) start in milliseconds and inherit the imports."""
 
@@ -151,7 +155,14 @@ class LocalExecutor(Executor):
         return [f.result() for f in futs]
 
     def _terminate(self):
-        """Stop the workers now (Ctrl-C): the pool's shutdown would first finish every running task."""
+        """Stop the workers now (Ctrl-C): the pool's shutdown would first finish every running task.
+
+        A worker stopped while it writes a result leaves half a message in the pool's result pipe, and the
+        pool's manager thread then waits for the rest for ever; the interpreter joins that thread at exit, so
+        :func:`rotorlab.cli.console` ends such a process without the join (:data:`ABANDONED_POOLS`).
+        """
+        global ABANDONED_POOLS
+        ABANDONED_POOLS += 1
         pool, self._pool = self._pool, None
         # the pool has no public way to stop running tasks: its processes (a private attribute) are terminated
         for proc in list((getattr(pool, "_processes", None) or {}).values()):
