@@ -127,7 +127,9 @@ def test_ardupilot_three_axes_generic_spec_meets_its_hard_goals():
     plants = {a: T.axis_plant(G, dl, dt) for a, (G, dl) in models.items()}
     text = generic_spec(ap, {a: (plants[a], *models[a]) for a in models}, dt, p, {"defaults": p})
     spec = parse_spec(tomllib.loads(text))
-    res = T.tune_autopilot(spec, plants, p)
+    # three starts: the single start from ArduPilot's yaw defaults fails to a non-stabilising end (objective inf)
+    # with numpy's AVX-512 loops off and one BLAS thread, and reaches 2.67 with them (docs/reproducibility.md)
+    res = T.tune_autopilot(spec, plants, p, starts=3)
     for axis, r in res.items():
         assert r.passed, axis
         assert all(ap.TABLE[k].in_range(v) for k, v in r.gains.items())
@@ -200,3 +202,18 @@ def test_cli_reads_the_flown_parameters_as_filters_start_and_baseline(px4_400hz,
     assert main(["tune", "--autopilot", "px4", "--model", f"pitch={d / 'pitch.json'}", "--match", "nope",
                  "--out", str(out)]) == 2
     assert "--match" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("autopilot", ["px4", "ardupilot"])
+def test_the_axis_block_crosses_to_worker_processes(autopilot):
+    """Several starts run in worker processes (`rotorlab tune --autopilot px4 --starts 3` raised "cannot pickle
+    'module' object"): the block pickles with its autopilot by name and builds the same matrices."""
+    import pickle
+
+    ap = autopilots.get(autopilot)
+    blk = T.AutopilotAxisBlock(autopilot, ap.TABLE.defaults(), "pitch", 1 / 250)
+    back = pickle.loads(pickle.dumps(blk))
+    assert back.ap is ap
+    theta = np.linspace(0.1, 0.5, len(blk.roles))
+    for a, b in zip(blk.matrices(theta), back.matrices(theta)):
+        np.testing.assert_array_equal(a, b)

@@ -123,6 +123,13 @@ class AutopilotAxisBlock(Block):
         super().__init__(f"{ap.NAME}_{axis}", [Param(n, float(base[n]), lower=0.0) for n in names],
                          4, 2, self._m0[0].shape[0], dt_s)
 
+
+    def __getstate__(self):
+        # a module does not pickle: the autopilot travels to run_starts' worker processes by its registry name
+        return {**self.__dict__, "ap": self.ap.NAME}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state, ap=get_autopilot(state["ap"]))
     def _one(self, params):
         C = self.ap.rate_controller_lti(params, self.axis, self._dt_s, fixed_structure=True)
         Ar, Br, Cr, Dr = (np.asarray(M, float) for M in (C.A, C.B, C.C, C.D))
