@@ -32,6 +32,7 @@ import math
 from collections.abc import Mapping
 
 import numpy as np
+from scipy.optimize import brentq
 
 from rotorlab import lti
 from rotorlab.autopilots import get as get_autopilot
@@ -61,12 +62,7 @@ def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tup
     all far below any crossover). ``wc_max`` is where that lag reaches ``-90 - PHASE_LIMIT_DEG`` = 75 deg,
     ``wc_min = wc_max / BAND_RATIO``.
     """
-    G = lti.as_ss(G)
-    if lti.is_discrete(G):
-        G = lti.d2c_zoh(G)
-    tau = delay_s + dt_s / 2 + math.sqrt(2.0) / (2 * math.pi * gyro_cutoff_hz)
-    poles = np.linalg.eigvals(np.asarray(G.A, float))
-    fast = poles[(poles.real < 0) & (np.abs(poles) >= 1.0 / (10.0 * tau))]
+    tau, fast = _lag_terms(G, delay_s, dt_s, gyro_cutoff_hz)
     budget = math.radians(-90.0 - PHASE_LIMIT_DEG)
 
     def lag(w):
@@ -76,19 +72,22 @@ def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tup
     if lag(hi) < 0:
         wmax = hi
     else:
-        from scipy.optimize import brentq
-
         wmax = brentq(lag, 1e-6, hi)
     return wmax / BAND_RATIO, wmax
 
 
-def _poles_text(G, delay_s, dt_s, cutoff):
+def _lag_terms(G, delay_s, dt_s, cutoff_hz):
+    """``tau_eff`` (s) and the fast stable poles (rad/s) of :func:`crossover_band`'s lag model."""
     G = lti.as_ss(G)
     if lti.is_discrete(G):
         G = lti.d2c_zoh(G)
-    tau = delay_s + dt_s / 2 + math.sqrt(2.0) / (2 * math.pi * cutoff)
-    p = np.linalg.eigvals(np.asarray(G.A, float))
-    p = p[(p.real < 0) & (np.abs(p) >= 1.0 / (10.0 * tau))]
+    tau = delay_s + dt_s / 2 + math.sqrt(2.0) / (2 * math.pi * cutoff_hz)
+    poles = np.linalg.eigvals(np.asarray(G.A, float))
+    return tau, poles[(poles.real < 0) & (np.abs(poles) >= 1.0 / (10.0 * tau))]
+
+
+def _poles_text(G, delay_s, dt_s, cutoff):
+    tau, p = _lag_terms(G, delay_s, dt_s, cutoff)
     return f"(tau_eff {tau * 1e3:.1f} ms; poles " + ", ".join(f"{z:.4g}" for z in p[p.imag >= 0]) + " rad/s)"
 
 
