@@ -86,7 +86,7 @@ def run_autopilot(args) -> int:
         rejected = {}
         if ap.NAME == "px4":
             # PX4 autotune flies its excitation on the gains flown today; an axis it rejects keeps them
-            gains, rejected = T.px4_autotune_params(plants, current, seed=args.seed)
+            gains, rejected = T.px4_autotune_params(plants, current)
             baselines["px4-autotune"] = {**current, **gains}
         if args.match and args.match not in baselines:
             raise ConfigError("no such baseline", field="--match", expected=" or ".join(baselines), got=args.match)
