@@ -519,3 +519,43 @@ def test_px4_autotune_identifies_an_arx_loop_and_keeps_the_design_at_convergence
         px4_autotune.autotune_params({"roll": res, "yaw": bad})
     with pytest.raises(ValueError, match="MC_AT_RISE_TIME"):
         px4_autotune.identify_axis(loop, "roll", 0.005, 100.0, 1.0, rise_time_s=0.6)
+
+
+def test_px4_arx_rls_reproduces_px4s_own_unit_test():
+    """src/lib/system_identification/arx_rls_test.cpp, test221: five zero samples, then (1, 2), (3, 4), (5, 6),
+    (7, 8) give -1.81, 1.06, 0.38, -0.27, 0.26 (PX4's tolerance 1e-2); a reset starts from zero and 1e4."""
+    from rotorlab.autopilots import px4_autotune
+
+    r = px4_autotune.ArxRls()
+    for u, y in [(0.0, 0.0)] * 5 + [(1.0, 2.0), (3.0, 4.0), (5.0, 6.0), (7.0, 8.0)]:
+        r.update(u, y)
+    assert np.max(np.abs(r.theta - [-1.81, 1.06, 0.38, -0.27, 0.26])) < 1e-2
+    fresh = px4_autotune.ArxRls()
+    assert np.all(fresh.variances == 1e4) and not fresh.theta.any()
+
+
+def test_px4_system_identification_reproduces_px4s_own_unit_tests():
+    """src/lib/system_identification/system_identification_test.cpp: ``basicTest`` (800 Hz, high-pass 0.05 Hz,
+    low-pass 30 Hz, forgetting 80 s; five zero samples, then (0, 1), (2, 3), ..., (8, 9): -3.96, 1.30, -2.28,
+    -0.33, 0.369 within 1e-2) and ``simulatedModelTest`` (200 Hz, a square input switching every 30 samples
+    with biases through a known ARX model for 2 s: the model within 1e-3)."""
+    from rotorlab.autopilots import px4_autotune
+
+    sid = px4_autotune.SystemIdentification(1 / 800, 30.0, 1 / 800, hpf_hz=0.05, forget_tau_s=80.0)
+    for u, y in [(0.0, 0.0)] * 5 + [(float(i), float(i + 1)) for i in range(0, 10, 2)]:
+        sid.update_filters(u, y)
+        sid.update()
+    assert np.max(np.abs(sid.theta - [-3.96, 1.30, -2.28, -0.33, 0.369])) < 1e-2
+
+    a1, a2, b0, b1, b2 = -1.77, 0.77, 0.3812, -0.25, 0.2
+    sid = px4_autotune.SystemIdentification(1 / 200, 30.0, 1 / 200, hpf_hz=0.05, forget_tau_s=60.0)
+    d1 = d2 = u = y = 0.0
+    for i in range(400):
+        if sid.initialised and i % 30 == 0:
+            u = -1.0 if u > 0 else 1.0
+        sid.update_filters(u - 0.1, y + 0.2)  # the new input and the previous output, both biased
+        sid.update()
+        d0 = u - d1 * a1 - d2 * a2  # the model, direct form II
+        y = d0 * b0 + d1 * b1 + d2 * b2
+        d1, d2 = d0, d1
+    assert np.max(np.abs(sid.theta - [a1, a2, b0, b1, b2])) < 1e-3

@@ -55,7 +55,7 @@ import numpy as np
 from rotorlab.autopilots import px4
 from rotorlab.errors import DataError
 
-__all__ = ["gmvc_pid", "model_dt", "arx221_fit", "StepSignal", "SystemIdentification", "AxisResult", "design",
+__all__ = ["gmvc_pid", "model_dt", "arx221_fit", "StepSignal", "ArxRls", "SystemIdentification", "AxisResult", "design",
            "identify_axis", "check_gains", "autotune_params", "autotune_gains", "RISE_TIME_DEFAULT_S",
            "YAW_RISE_TIME_S", "SYSID_AMP_DEFAULT"]
 
@@ -177,30 +177,69 @@ class StepSignal:
         return out
 
 
-class SystemIdentification:
-    """PX4's on-line identification of one axis (src/lib/system_identification/system_identification.cpp and
-    arx_rls.hpp): torque ``u`` and rate ``y`` low-passed at the gyro cutoff (``LowPassFilter2p``) and
-    high-passed at 0.5 Hz (``h[k] = a (h[k-1] + x[k] - x[k-1])``, ``a = f_s / (f_s + pi)``) at the loop rate,
-    and the ARX model of :func:`arx221_fit` updated by recursive least squares (initial covariance ``1e4 I``,
-    forgetting factor ``1 - model_dt / 60 s``) every :meth:`update` call, which the module makes once per model
-    period. The first sample only initialises the filters; the recursion starts once its regressor holds no
-    initial zeros (after six samples).
+class ArxRls:
+    """PX4's ``ArxRls<2, 2, 1>`` (src/lib/system_identification/arx_rls.hpp): recursive least squares of the ARX
+    model of :func:`arx221_fit`, coefficients ``theta = (a1, a2, b0, b1, b2)`` from zero, covariance from
+    ``1e4 I``, forgetting factor ``lam``. A sample enters the input and output buffers; the recursion starts once
+    they hold six samples (no initial zeros in the regressor ``[-y[k-1], -y[k-2], u[k-1], u[k-2], u[k-3]]``):
+    ``P <- (P - P phi phi' P / (lam + phi' P phi)) / lam``, ``theta <- theta + P phi (y[k] - phi' theta)``.
+
+    Examples
+    --------
+    >>> r = ArxRls()
+    >>> for u, y in [(0, 0)] * 5 + [(1, 2), (3, 4), (5, 6), (7, 8)]:
+    ...     r.update(u, y)
+    >>> [round(float(v), 3) for v in r.theta]  # arx_rls_test.cpp test221: -1.81, 1.06, 0.38, -0.27, 0.26 (+-1e-2)
+    [-1.811, 1.056, 0.377, -0.264, 0.264]
     """
 
-    def __init__(self, loop_dt_s: float, gyro_cutoff_hz: float, model_dt_s: float):
-        from rotorlab.autopilots import filters
-
-        self._b, self._a = filters.butter2_coeffs(1.0 / loop_dt_s, gyro_cutoff_hz)
-        self._alpha_hp = (1.0 / loop_dt_s) / (1.0 / loop_dt_s + 2.0 * math.pi * HPF_HZ)
-        self._lam = 1.0 - model_dt_s / FORGET_TAU_S
-        self.theta = np.zeros(5)  # a1, a2, b0, b1, b2
+    def __init__(self, lam: float = 1.0):
+        self.lam = float(lam)
+        self.theta = np.zeros(5)
         self.P = np.eye(5) * 10e3
-        self._w = np.zeros((2, 2))  # direct-form II delay elements of the u and y low-passes
-        self._hp = np.zeros(2)
-        self._prev = np.zeros(2)
         self._u = np.zeros(4)
         self._y = np.zeros(3)
         self._n = 0
+
+    def update(self, u: float, y: float) -> None:
+        self._u[:3] = self._u[1:]
+        self._u[3] = u
+        self._y[:2] = self._y[1:]
+        self._y[2] = y
+        if self._n <= 5:
+            self._n += 1
+        if self._n <= 5:
+            return
+        phi = np.array([-self._y[1], -self._y[0], self._u[2], self._u[1], self._u[0]])
+        Pphi = self.P @ phi
+        self.P = (self.P - np.outer(Pphi, Pphi) / (self.lam + phi @ Pphi)) / self.lam
+        self.theta = self.theta + self.P @ phi * (self._y[2] - phi @ self.theta)
+
+    @property
+    def variances(self) -> np.ndarray:
+        return np.diag(self.P).copy()
+
+
+class SystemIdentification:
+    """PX4's on-line identification of one axis (src/lib/system_identification/system_identification.cpp): torque
+    ``u`` and rate ``y`` low-passed at the gyro cutoff (``LowPassFilter2p``) and high-passed at 0.5 Hz
+    (``h[k] = a (h[k-1] + x[k] - x[k-1])``, ``a = f_s / (f_s + pi)``) at the loop rate by
+    :meth:`update_filters`, and the band-passed pair fed to :class:`ArxRls` (forgetting ``1 - model_dt / 60 s``)
+    by :meth:`update`, which the module calls once per model period. The first sample only initialises the
+    filters. ``hpf_hz`` and ``forget_tau_s`` are the module's (0.5 Hz, 60 s) unless given (PX4's unit tests use
+    others).
+    """
+
+    def __init__(self, loop_dt_s: float, gyro_cutoff_hz: float, model_dt_s: float, *, hpf_hz: float = HPF_HZ,
+                 forget_tau_s: float = FORGET_TAU_S):
+        from rotorlab.autopilots import filters
+
+        self._b, self._a = filters.butter2_coeffs(1.0 / loop_dt_s, gyro_cutoff_hz)
+        self._alpha_hp = (1.0 / loop_dt_s) / (1.0 / loop_dt_s + 2.0 * math.pi * hpf_hz)
+        self.rls = ArxRls(1.0 - model_dt_s / forget_tau_s)
+        self._w = np.zeros((2, 2))  # direct-form II delay elements of the u and y low-passes
+        self._hp = np.zeros(2)
+        self._prev = np.zeros(2)
         self.initialised = False
 
     def update_filters(self, u: float, y: float) -> None:
@@ -219,22 +258,15 @@ class SystemIdentification:
         self._prev = lp
 
     def update(self) -> None:
-        self._u[:3] = self._u[1:]
-        self._u[3] = self._hp[0]
-        self._y[:2] = self._y[1:]
-        self._y[2] = self._hp[1]
-        if self._n <= 5:
-            self._n += 1
-        if self._n <= 5:
-            return
-        phi = np.array([-self._y[1], -self._y[0], self._u[2], self._u[1], self._u[0]])
-        Pphi = self.P @ phi
-        self.P = (self.P - np.outer(Pphi, Pphi) / (self._lam + phi @ Pphi)) / self._lam
-        self.theta = self.theta + self.P @ phi * (self._y[2] - phi @ self.theta)
+        self.rls.update(self._hp[0], self._hp[1])
+
+    @property
+    def theta(self) -> np.ndarray:
+        return self.rls.theta
 
     @property
     def variances(self) -> np.ndarray:
-        return np.diag(self.P).copy()
+        return self.rls.variances
 
 
 @dataclasses.dataclass
