@@ -331,3 +331,25 @@ def test_tuhh_px4_set_at_the_autotune_rules_margin_beats_the_rule_on_every_axis(
 
 def test_tuhh_ardupilot_tuned_set_beats_ardupilots_defaults_on_every_axis(tuhh):
     _beats(tuhh, "ardupilot", "ardupilot", "ardupilot-defaults")
+
+
+def test_cli_px4_autotune_baseline_takes_the_files_rise_time(px4_400hz, tmp_path, capsys):
+    """MC_AT_RISE_TIME in ``--params`` is the module's rise time for the px4-autotune baseline (slower: a
+    smaller rate gain, less gyro noise on the command); outside its documented 0.01-0.5 s it is refused, exit 2,
+    naming the file and the parameter."""
+    _, d = px4_400hz
+    noise = {}
+    for rise in (0.14, 0.3):
+        f = tmp_path / f"flown{rise}.params"
+        f.write_text(f"1\t1\tMC_AT_RISE_TIME\t{rise}\t9\n")
+        assert main(["tune", "--autopilot", "px4", "--model", f"pitch={d / 'pitch.json'}", "--params", str(f),
+                     "--out", str(tmp_path / f"t{rise}.params")]) == 0
+        line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("  px4-autotune"))
+        noise[rise] = float(line.rsplit("gyro noise", 1)[1])
+    assert noise[0.3] < 0.8 * noise[0.14]
+    f = tmp_path / "bad.params"
+    f.write_text("1\t1\tMC_AT_RISE_TIME\t0.9\t9\n")
+    assert main(["tune", "--autopilot", "px4", "--model", f"pitch={d / 'pitch.json'}", "--params", str(f),
+                 "--out", str(tmp_path / "bad-out.params")]) == 2
+    err = capsys.readouterr().err
+    assert "MC_AT_RISE_TIME" in err and str(f) in err and "0.5" in err and "0.9" in err
