@@ -22,8 +22,14 @@ period, ``F`` the autopilot's gyro low-pass at its cutoff):
   disturbance is worked off: the IAE), each normalised by the best baseline, so that a value below 1 on both beats
   every baseline on both (soft).
 
-The baselines are the parameter sets the user has (the log's or file's, the autopilot's defaults, PX4
-autotune's rule on the same model): their margins and noise set the floors, their rejection the yardstick.
+The baselines are the parameter sets the user has (the log's or file's, the autopilot's defaults, what PX4's
+autotune module saves on the same model): their margins and noise set the floors, their rejection the yardstick.
+
+With ``match`` (``rotorlab tune --match``) one baseline's robustness replaces the most robust one's: the disk
+floor is that baseline's margin (no 0.4 minimum), the noise bound the larger of its gain and the rule above, the
+band reaches ``MATCH_BAND`` times its crossover. A baseline that buys its rejection with a small margin (PX4's
+autotune module on the tuhh-quad: 0.21-0.24 on roll and pitch) cannot be beaten at the defaults' margin by this
+structure; at its own margin it can (docs/autopilot-tuning.md has the numbers and the sweep).
 """
 
 from __future__ import annotations
