@@ -5,9 +5,10 @@
    pairs, 0.026 s, 6.5 loop periods), written as model JSON.
 2. ``rotorlab tune --autopilot px4`` (generic spec; and ``--match px4-autotune``) and ``--autopilot ardupilot``
    at 250 Hz: the linear analysis of the tuned set and of every baseline is printed by the command.
-3. The PX4 autotune rule's set (what PX4 would save, written without the range check: its D exceeds PX4's
-   documented 0.01) and the defaults flown beside the tuned sets: ``input-disturbance`` on the pitch and roll rigs
-   (10 % step), and a 10 % yaw step at the plant input in free flight (the scenario has no yaw rig).
+3. The PX4 autotune module's set (its identification run on the same loops flying the defaults, then its rule:
+   what PX4 would save, written without the range check as PX4 writes it: its MC_YAW_P exceeds the documented 5)
+   and the defaults flown beside the tuned sets: ``input-disturbance`` on the pitch and roll rigs (10 % step),
+   and a 10 % yaw step at the plant input in free flight (the scenario has no yaw rig).
 
 Run: ``python benchmarks/autopilot_tune_twin.py [OUTDIR]``.
 """

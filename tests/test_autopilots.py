@@ -1,6 +1,7 @@
 """The autopilots' controller laws (rotorlab.autopilots) against hand-computed responses of the documented laws,
 their LTI forms against the stateful steps, the filters against their defining formulas, and the parameter files."""
 
+import itertools
 import math
 
 import control as ct
@@ -413,7 +414,148 @@ def test_px4_autotune_from_a_fitted_arx_model_by_hand():
                                    "MC_PITCHRATE_D": kc * kd,
                                    "MC_PITCH_P": min(max(1 / (math.radians(60) * kc), 2.0), 6.5)}, rel=1e-12)
     px4.TABLE.check(gains)  # what autotune saves is in the documented ranges
-    with pytest.raises(DataError, match="PX4 autotune would reject the pitch gains"):
+    with pytest.raises(DataError, match="PX4 autotune would reject the gains .*pitch kc = -"):
         px4_autotune.autotune_gains({"pitch": (-100 * num, den)}, dt)  # a reversed input gives kc < 0
     with pytest.raises(DataError, match="excite"):
         px4_autotune.arx221_fit(np.zeros(100), np.zeros(100))
+
+
+def test_px4_gmvc_critically_damped_design_by_hand():
+    """With damping index 0 (the module's call) the GMVC target is the double pole ``r = exp(-2 dt / sigma)``:
+    ``p1 = -2 r``, ``p2 = r^2``. For ``A = 1 - 1.6 q^-1 + 0.64 q^-2``, ``B = 0.02 + 0.01 q^-1``, dt 5 ms,
+    sigma 0.14 s, detune 0.7, worked by hand: e1 = 0.737874, f0 = 0.545350, f1 = -1.012837, f2 = 0.472239,
+    nu = 0.752136, so kc = 0.090887, ki = 0.545350 ... / 5 = 2.78079, kd = 0.0345409, attitude P 6.5 (clipped)."""
+    from rotorlab.autopilots import px4_autotune
+
+    r = math.exp(-2 * 0.005 / 0.14)
+    e1 = 1.6 - 2 * r + 1
+    f0, f1, f2 = 1.6 * e1 - 1.6 - 0.64 + e1 + r * r, -1.6 * e1 - 0.64 * e1 + 0.64, 0.64 * e1
+    assert (e1, f0, f1, f2) == pytest.approx((0.737874, 0.545350, -1.012837, 0.472239), abs=2e-6)
+    kc, ki, kd, att_p = px4_autotune.design((0.02, 0.01, 0.0), (1.0, -1.6, 0.64), 0.005, 0.14)
+    assert kc == pytest.approx(0.068359 / 0.752136, rel=2e-5)
+    assert ki == pytest.approx(-(f0 + f1 + f2) / (0.005 * (f1 + 2 * f2)) / 5, rel=1e-9)
+    assert (ki, kd) == pytest.approx((2.78079, 0.0345409), rel=2e-5)
+    assert att_p == 6.5  # 1 / (60 deg x 0.0909) = 10.5, clipped to 6.5
+
+
+def test_px4_autotune_signal_is_the_washed_out_step_sequence():
+    """getIdentificationSignal: steps of 0 and the amplitude lasting 6, 10, 9, ..., 2 ticks, then 6, 5, 4, 3, 2
+    over and over (``_max_steps`` counts down to 1 and restarts at 5), minus their
+    first-order wash-out (alpha 1/3 per tick): the value is positive while the step is up, negative while down,
+    and decays by 2/3 per tick."""
+    from rotorlab.autopilots import px4_autotune
+
+    s = px4_autotune.StepSignal(0.7)
+    v = np.array([s.next() for _ in range(150)])
+    runs = [len(list(g)) for _, g in itertools.groupby(v > 0)]
+    assert runs[:21] == [6, 10, 9, 8, 7, 6, 5, 4, 3, 2, 6, 5, 4, 3, 2, 6, 5, 4, 3, 2, 6]
+    assert v[0] == pytest.approx(0.7) and v[1] == pytest.approx(0.7 * 2 / 3) and v[5] == pytest.approx(0.7 * (2 / 3) ** 5)
+    assert v[6] == pytest.approx(-0.7 * (1 - (2 / 3) ** 6))
+
+
+def test_px4_system_identification_is_the_regularised_forgetting_least_squares():
+    """The recursion equals its closed form at every step: theta_N minimises ``sum lambda^(N-k) e_k^2 +
+    lambda^N theta' P0^-1 theta`` (P0 = 1e4 I, lambda = 1 - dt/60) over the band-passed samples, the regressor
+    ``[-y[k-1], -y[k-2], u[k-1], u[k-2], u[k-3]]`` starting once it holds no initial zeros; the high-pass is
+    ``h[k] = a (h[k-1] + x[k] - x[k-1])``, ``a = fs / (fs + pi)``, from the first sample (the low-pass is off
+    at a cutoff at Nyquist). Data: noisy, not from an ARX model, so every weight matters."""
+    from rotorlab.autopilots import px4_autotune
+
+    dt = 0.005
+    rng = np.random.default_rng(3)
+    u, y = rng.standard_normal(400), np.cumsum(rng.standard_normal(400)) * 0.1
+    sid = px4_autotune.SystemIdentification(dt, 100.0, dt)  # 100 Hz at 200 Hz: low-pass off
+    for a, b in zip(u, y):
+        sid.update_filters(a, b)
+        sid.update()
+    alpha = (1 / dt) / (1 / dt + math.pi)
+    hu, hy = np.zeros(400), np.zeros(400)
+    for k in range(1, 400):
+        hu[k] = alpha * (hu[k - 1] + u[k] - u[k - 1])
+        hy[k] = alpha * (hy[k - 1] + y[k] - y[k - 1])
+    lam = 1 - dt / 60
+    ks = np.arange(5, 400)  # the recursion starts at the sixth sample
+    Phi = np.column_stack([-hy[ks - 1], -hy[ks - 2], hu[ks - 1], hu[ks - 2], hu[ks - 3]])
+    w = lam ** (ks[-1] - ks)
+    n = len(ks)
+    M = Phi.T @ (w[:, None] * Phi) + lam**n * np.eye(5) / 1e4
+    want = np.linalg.solve(M, Phi.T @ (w * hy[ks]))
+    np.testing.assert_allclose(sid.theta, want, rtol=1e-7, atol=1e-10)
+    np.testing.assert_allclose(sid.variances, np.diag(np.linalg.inv(M)), rtol=1e-7)
+
+
+def test_px4_autotune_identifies_an_arx_loop_and_keeps_the_design_at_convergence():
+    """A P-controlled plant that is exactly the module's ARX model at the loop rate (200 Hz, 100 Hz gyro cutoff:
+    model period = loop period, low-pass off): the band-pass keeps the ARX relation, the recursion recovers the
+    model, and the module moves on at its first publishing tick after 5 s (every 21 loop periods, 105 ms:
+    5.04 s) with the gains designed from that model; a reversed input is refused with the set."""
+    from rotorlab.autopilots import px4_autotune
+
+    num, den = np.array([0.02, 0.01, 0.005]), np.array([1.0, -1.6, 0.64])
+    st = {"u": [0.0] * 3, "y": [0.0] * 2}
+
+    def loop(r):
+        yk = -den[1] * st["y"][-1] - den[2] * st["y"][-2] + num @ st["u"][::-1][:3]
+        uk = 2.0 * (r - yk)
+        st["y"] = [st["y"][-1], yk]
+        st["u"] = [st["u"][1], st["u"][2], uk]
+        return uk, yk
+
+    res = px4_autotune.identify_axis(loop, "roll", 0.005, 100.0, 1 / 2.0)
+    assert res.model_dt_s == 0.005 and res.time_s == pytest.approx(5.04)
+    # the washed-out steps held for 105 ms excite the model's response, not each coefficient: the fit is the
+    # plant within 1 % and 0.6 deg up to half the Nyquist frequency
+    z = np.exp(2j * np.pi * np.geomspace(0.1, 50.0, 30) * 0.005)
+    got, want = (np.polyval(b[::-1], 1 / z) / z / np.polyval(a[::-1], 1 / z) for b, a in ((res.num, res.den), (num, den)))
+    assert np.max(np.abs(np.abs(got / want) - 1)) < 0.01
+    assert np.max(np.abs(np.angle(got / want, deg=True))) < 0.6
+    # the gains kept are those designed from the model one publishing tick earlier: the same within 0.2 %
+    assert (res.kc, res.ki, res.kd, res.att_p) == pytest.approx(
+        px4_autotune.design(res.num, res.den, 0.005, 0.14), rel=2e-3)
+    g = px4_autotune.autotune_params({"roll": res})
+    assert g["MC_ROLLRATE_I"] == pytest.approx(res.kc * res.ki) and g["MC_ROLLRATE_D"] == pytest.approx(res.kc * res.kd)
+    bad = px4_autotune.AxisResult("yaw", num, den, 0.005, -0.1, 1.0, 0.0, 6.5, 5.0)
+    with pytest.raises(DataError, match="every axis: yaw kc = -0.1"):
+        px4_autotune.autotune_params({"roll": res, "yaw": bad})
+    with pytest.raises(ValueError, match="MC_AT_RISE_TIME"):
+        px4_autotune.identify_axis(loop, "roll", 0.005, 100.0, 1.0, rise_time_s=0.6)
+
+
+def test_px4_arx_rls_reproduces_px4s_own_unit_test():
+    """src/lib/system_identification/arx_rls_test.cpp, test221: five zero samples, then (1, 2), (3, 4), (5, 6),
+    (7, 8) give -1.81, 1.06, 0.38, -0.27, 0.26 (PX4's tolerance 1e-2); a reset starts from zero and 1e4."""
+    from rotorlab.autopilots import px4_autotune
+
+    r = px4_autotune.ArxRls()
+    for u, y in [(0.0, 0.0)] * 5 + [(1.0, 2.0), (3.0, 4.0), (5.0, 6.0), (7.0, 8.0)]:
+        r.update(u, y)
+    assert np.max(np.abs(r.theta - [-1.81, 1.06, 0.38, -0.27, 0.26])) < 1e-2
+    fresh = px4_autotune.ArxRls()
+    assert np.all(fresh.variances == 1e4) and not fresh.theta.any()
+
+
+def test_px4_system_identification_reproduces_px4s_own_unit_tests():
+    """src/lib/system_identification/system_identification_test.cpp: ``basicTest`` (800 Hz, high-pass 0.05 Hz,
+    low-pass 30 Hz, forgetting 80 s; five zero samples, then (0, 1), (2, 3), ..., (8, 9): -3.96, 1.30, -2.28,
+    -0.33, 0.369 within 1e-2) and ``simulatedModelTest`` (200 Hz, a square input switching every 30 samples
+    with biases through a known ARX model for 2 s: the model within 1e-3)."""
+    from rotorlab.autopilots import px4_autotune
+
+    sid = px4_autotune.SystemIdentification(1 / 800, 30.0, 1 / 800, hpf_hz=0.05, forget_tau_s=80.0)
+    for u, y in [(0.0, 0.0)] * 5 + [(float(i), float(i + 1)) for i in range(0, 10, 2)]:
+        sid.update_filters(u, y)
+        sid.update()
+    assert np.max(np.abs(sid.theta - [-3.96, 1.30, -2.28, -0.33, 0.369])) < 1e-2
+
+    a1, a2, b0, b1, b2 = -1.77, 0.77, 0.3812, -0.25, 0.2
+    sid = px4_autotune.SystemIdentification(1 / 200, 30.0, 1 / 200, hpf_hz=0.05, forget_tau_s=60.0)
+    d1 = d2 = u = y = 0.0
+    for i in range(400):
+        if sid.initialised and i % 30 == 0:
+            u = -1.0 if u > 0 else 1.0
+        sid.update_filters(u - 0.1, y + 0.2)  # the new input and the previous output, both biased
+        sid.update()
+        d0 = u - d1 * a1 - d2 * a2  # the model, direct form II
+        y = d0 * b0 + d1 * b1 + d2 * b2
+        d1, d2 = d0, d1
+    assert np.max(np.abs(sid.theta - [a1, a2, b0, b1, b2])) < 1e-3

@@ -383,53 +383,62 @@ def tune_autopilot(spec, plants: Mapping[str, ct.StateSpace], params: Mapping[st
     return out
 
 
-def px4_autotune_params(plants: Mapping[str, ct.StateSpace], params: Mapping[str, float], *, seed=0,
-                        duration_s: float = 20.0, amplitude: float = 0.05,
-                        rise_time_s: float | None = None) -> tuple[dict[str, float], dict[str, str]]:
-    """The parameters PX4 autotune's rule gives on the same plants: the loop closed by ``params`` (PX4 tunes in
-    flight, the old gains flying) is excited by a seeded random-binary torque ``amplitude`` at the plant input,
-    the plant input and the gyro-filtered rate are sampled at the autotune model's period
-    (:func:`rotorlab.autopilots.px4_autotune.model_dt`), the 2-pole ARX model fitted
-    (:func:`~rotorlab.autopilots.px4_autotune.arx221_fit`) and PX4's rule applied
-    (:func:`~rotorlab.autopilots.px4_autotune.autotune_gains`) axis by axis. Returns the parameters of the axes
-    PX4 would accept and, for the others, why its check rejects them (PX4 then keeps the old gains)."""
+def px4_autotune_params(plants: Mapping[str, ct.StateSpace], params: Mapping[str, float], *,
+                        rise_time_s: float | None = None,
+                        amplitude: float | None = None) -> tuple[dict[str, float], dict[str, str]]:
+    """The parameters PX4's autotune module saves when run on ``plants`` (axis -> :func:`axis_plant`) flying
+    ``params``: the module's identification (:func:`rotorlab.autopilots.px4_autotune.identify_axis`) on the
+    linear closed loop at the loop period, the signal added to the rate set-point, then its design and its
+    check of the set. Returns the saved parameters and, per axis, why PX4 would not save them; PX4 saves all
+    axes or none (then the first dict is empty and the flown gains stay on every axis).
+
+    ``rise_time_s`` is MC_AT_RISE_TIME (default 0.14 s; yaw always 0.2 s), ``amplitude`` MC_AT_SYSID_AMP
+    (default 0.7 rad/s; the loop is linear, so it changes only the time to convergence)."""
     from rotorlab.autopilots import filters, px4, px4_autotune
 
-    rng = np.random.default_rng(seed)
-    models, mdt = {}, None
+    kw = {} if rise_time_s is None else {"rise_time_s": rise_time_s}
+    amp = px4_autotune.SYSID_AMP_DEFAULT if amplitude is None else float(amplitude)
+    cutoff = float(params["IMU_GYRO_CUTOFF"])
+    results, rejected = {}, {}
     for axis, Gp in plants.items():
         dt = float(Gp.dt)
-        mdt = px4_autotune.model_dt(float(params["IMU_GYRO_CUTOFF"]), dt)
-        m = int(round(mdt / dt))
-        T, _ = _closed(px4, params, axis, Gp, ("d_u",), ("u", "q"))
-        Fg = filters.butter2_ss(1.0 / dt, float(params["IMU_GYRO_CUTOFF"]))
-        n = int(round(duration_s / dt))
-        d = np.repeat(amplitude * rng.choice([-1.0, 1.0], size=n // m + 1), m)[:n]
+        T = _rate_sp_loop(px4, params, axis, Gp)
+        Fg = filters.butter2_ss(1.0 / dt, cutoff)
         A, B, C, D = (np.asarray(M, float) for M in (T.A, T.B, T.C, T.D))
         Af, Bf, Cf, Df = (np.asarray(M, float) for M in (Fg.A, Fg.B, Fg.C, Fg.D))
         x, xf = np.zeros(A.shape[0]), np.zeros(Af.shape[0])
-        u, y = np.empty(n), np.empty(n)
-        for k in range(n):
-            o = C @ x + D[:, 0] * d[k]
-            u[k], q = o[0], o[1]
-            y[k] = Cf[0] @ xf + Df[0, 0] * q
-            x = A @ x + B[:, 0] * d[k]
+
+        def loop(r, A=A, B=B, C=C, D=D, Af=Af, Bf=Bf, Cf=Cf, Df=Df):
+            nonlocal x, xf
+            u, q = C @ x + D[:, 0] * r
+            y = float(Cf[0] @ xf + Df[0, 0] * q)
+            x = A @ x + B[:, 0] * r
             xf = Af @ xf + Bf[:, 0] * q
-        # PX4 high-passes both signals at 0.5 Hz before its recursive fit (first order, backward Euler)
-        a_hp = 1.0 / (1.0 + 2.0 * math.pi * 0.5 * dt)
-        models[axis] = px4_autotune.arx221_fit(_highpass(u, a_hp)[::m], _highpass(y, a_hp)[::m])
-    kw = {} if rise_time_s is None else {"rise_time_s": rise_time_s}
-    out, rejected = {}, {}
-    for axis, model in models.items():
+            return float(u), y
+
+        n = px4.axis_names(axis)
+        scale = 1.0 / (float(params[n["P"]]) * float(params[n["K"]]))
         try:
-            out.update(px4_autotune.autotune_gains({axis: model}, mdt, **kw))
+            results[axis] = px4_autotune.identify_axis(loop, axis, dt, cutoff, scale, amplitude=amp, **kw)
         except DataError as exc:
             rejected[axis] = str(exc)
-    return out, rejected
+    if rejected:
+        return {}, rejected
+    try:
+        return px4_autotune.autotune_params(results), {}
+    except DataError as exc:
+        return {}, {a: str(exc) for a in results}
 
 
-def _highpass(x, a):
-    y = np.zeros_like(x)
-    for k in range(1, x.size):
-        y[k] = a * (y[k - 1] + x[k] - x[k - 1])
-    return y
+def _rate_sp_loop(autopilot, params, axis, Gp):
+    """The closed loop of ``params`` around ``Gp`` from a signal added to the rate set-point (after the angle
+    P, where PX4's autotune adds its signal) to ``[u, q]``: torque set-point and body rate."""
+    blk = AutopilotAxisBlock(autopilot, apply_gains(autopilot, params, axis, parallel_gains(autopilot, params, axis)),
+                             axis, float(Gp.dt))
+    P = cas.generalised_plant(Gp, (), inputs=("d_u",), outputs=("u", "q"))
+    B = np.asarray(P.B, float).copy()
+    D = np.asarray(P.D, float).copy()
+    B[:, 0] = 0.0
+    D[:, 0] = 0.0
+    D[2 + 2, 0] = 1.0  # measurements [theta_ref, theta_meas, q_ref, q_meas] follow the two outputs
+    return closed_loop(ct.ss(P.A, B, P.C, D, P.dt), cas.N_MEAS, cas.N_CON, blk.ss())

@@ -43,7 +43,7 @@ def add_parser(sub):
                                                  "IMU_GYRO_RATEMAX / SCHED_LOOP_RATE)")
     p.add_argument("--spec-out", help="with --autopilot: write the generated spec TOML here")
     p.add_argument("--match", help="with --autopilot: hold the tuned set to this baseline's robustness (file, "
-                                   "defaults, px4-autotune): its disk margin and gyro noise, not the most robust "
+                                   "defaults, px4-autotune): its disk margin and at least its gyro-noise allowance, not the most robust "
                                    "baseline's (docs/autopilot-tuning.md)")
     p.add_argument("--start", default="standard",
                    help="start gains: a gains TOML file or a gain-set name of the spec's vehicle")
