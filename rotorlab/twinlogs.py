@@ -10,12 +10,12 @@ since pymavlink has no DataFlash writer).
 What the files hold, per autopilot:
 
 - ULog (PX4 v1.14 layout): ``vehicle_rates_setpoint`` (the rate set-point the rate loop flew, excitation included),
-  ``vehicle_angular_velocity`` (the twin's gyro), ``vehicle_torque_setpoint`` (the rate loop's normalised output),
-  ``vehicle_thrust_setpoint``, ``vehicle_attitude`` and ``vehicle_attitude_setpoint`` (quaternions),
+  ``vehicle_angular_velocity`` (the twin's gyro through IMU_GYRO_CUTOFF, as PX4 logs it),
+  ``vehicle_torque_setpoint`` (the rate loop's normalised output), ``vehicle_thrust_setpoint``, ``vehicle_attitude`` and ``vehicle_attitude_setpoint`` (quaternions),
   ``vehicle_status`` (armed, ALTCTL), ``vehicle_land_detected`` (airborne throughout: the flight starts in hover),
   ``autotune_attitude_control_status`` (its state at 10 Hz, the layout before v1.17: 1 init, 2/3 roll and its
   pause, 4/5 pitch, 6/7 yaw, 11 complete; and ``rate_sp``), and the flown parameters with ``MC_AT_*``.
-- DataFlash (Copter >= 3.4 layout): ``RATE`` (deg/s, normalised outputs), ``ATT`` (deg), ``CTUN.ThO``, ``MODE``
+- DataFlash (Copter >= 3.4 layout): ``RATE`` (deg/s, the gyro through INS_GYRO_FILTER; normalised outputs), ``ATT`` (deg), ``CTUN.ThO``, ``MODE``
   (ALT_HOLD, SYSTEMID per axis), ``EV`` (armed, not landed), ``SIDS`` (the SID settings at each mode entry,
   SID_AXIS 7-9) and ``SIDD`` (every loop while the mode runs), ``PARM`` (flown parameters and ``SID_*``).
 
@@ -32,14 +32,18 @@ from pathlib import Path
 import numpy as np
 
 from rotorlab import autopilots
+from rotorlab.autopilots import filters
 from rotorlab.errors import ConfigError
 
-__all__ = ["fly_twin_log", "run_to_ulog", "run_to_dataflash", "true_rate_plant", "FORMATS", "T0_US"]
+__all__ = ["fly_twin_log", "run_to_ulog", "run_to_dataflash", "true_rate_plant", "FORMATS", "T0_US",
+           "GYRO_CUTOFF_PARAM"]
 
 #: log suffix -> (format, the autopilot that writes it)
 FORMATS = {".ulg": ("ulog", "px4"), ".bin": ("dataflash", "ardupilot")}
 #: the log's clock at the twin's t = 0, us (a real log starts at boot, never at 0)
 T0_US = 1_000_000
+#: the parameter of each autopilot's gyro low-pass, Hz: its logged rate is the filtered gyro its rate law flies on
+GYRO_CUTOFF_PARAM = {"px4": "IMU_GYRO_CUTOFF", "ardupilot": "INS_GYRO_FILTER"}
 _D2R = math.pi / 180.0
 _AXES = ("roll", "pitch", "yaw")
 # PX4 autotune_attitude_control_status.state before v1.17 (msg/AutotuneAttitudeControlStatus.msg)
@@ -53,9 +57,11 @@ _EV_ARMED, _EV_NOT_LANDED = 10, 28
 _SID_AXIS = {"roll": 7, "pitch": 8, "yaw": 9}
 
 
-def true_rate_plant(vehicle, axis: str, dt_s: float, slow_rad_s: float = 0.1):
+def true_rate_plant(vehicle, axis: str, dt_s: float, gyro_cutoff_hz: float = 0.0, slow_rad_s: float = 0.1):
     """The twin's true rate plant of ``axis`` in the logs' units: normalised torque (the rate loop's output, 1 =
-    a 100 % differential command) in, rad/s out, the command held over ``dt_s`` and the rate sampled at it.
+    a 100 % differential command) in, rad/s out, the command held over ``dt_s`` and the rate sampled at it; with
+    ``gyro_cutoff_hz`` the rate as the autopilot logs it, through its gyro low-pass (:data:`GYRO_CUTOFF_PARAM`,
+    the second-order filter of :func:`rotorlab.autopilots.filters.butter2_ss` at ``1 / dt_s``).
 
     From the 1 ms linearisation about hover in free flight (:func:`rotorlab.sim.linearize.linearize`, the rotors'
     transport delays as exact shift registers), with the vehicle's translation held (its position and velocity
@@ -111,12 +117,24 @@ def true_rate_plant(vehicle, axis: str, dt_s: float, slow_rad_s: float = 0.1):
             poles.remove(pz)
             zeros.remove(min(cand, key=lambda z: abs(z - pz)))
             dropped += 1
-    if not dropped:
-        return P
-    G = ct.tf(np.real(np.poly(zeros)), np.real(np.poly(poles)), dt_s)
-    z_ref = np.exp(1j * 10.0 * dt_s)
-    k = ct.evalfr(P, z_ref) / ct.evalfr(G, z_ref)
-    return ct.ss(ct.tf(np.real(k) * G.num[0][0], G.den[0][0], dt_s))
+    if dropped:
+        G = ct.tf(np.real(np.poly(zeros)), np.real(np.poly(poles)), dt_s)
+        z_ref = np.exp(1j * 10.0 * dt_s)
+        k = ct.evalfr(P, z_ref) / ct.evalfr(G, z_ref)
+        P = ct.ss(ct.tf(np.real(k) * G.num[0][0], G.den[0][0], dt_s))
+    if gyro_cutoff_hz > 0:
+        P = ct.series(P, filters.butter2_ss(1.0 / dt_s, gyro_cutoff_hz))
+    return P
+
+
+def _logged_rate(rate_rad_s, autopilot: str, params: dict, dt_s: float) -> np.ndarray:
+    """The twin's gyro (rad/s) as the autopilot logs its rate: through the gyro low-pass its rate law ran on it
+    (PX4's ``vehicle_angular_velocity`` after IMU_GYRO_CUTOFF, ArduPilot's ``RATE.R`` after INS_GYRO_FILTER), the
+    same coefficients from rest, as the law's filter starts after its reset."""
+    from scipy.signal import lfilter
+
+    b, a = filters.butter2_coeffs(1.0 / dt_s, float(params[GYRO_CUTOFF_PARAM[autopilot]]))
+    return lfilter(b, a, rate_rad_s)
 
 
 def _notes(result):
@@ -149,12 +167,17 @@ def _quat(phi_deg, theta_deg, psi_deg) -> np.ndarray:
                             cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy])
 
 
-def _columns(result):
+def _columns(result, params: dict):
+    """Time (s) and the run's columns; ``p, q, r`` (deg/s) as the autopilot logs them (:func:`_logged_rate`)."""
     log = result.log
     t = np.asarray(log["t"], float)
     get = {c: np.asarray(log[c], float) for c in ("p", "q", "r", "p_ref", "q_ref", "r_ref", "u_lat", "u_lon",
                                                    "u_yaw", "u_col", "phi", "theta", "psi", "phi_ref",
                                                    "theta_ref", "psi_ref")}
+    ap = _notes(result)["autopilot"]
+    dt = float(result.info["control_dt_s"])
+    for c in ("p", "q", "r"):
+        get[c] = _logged_rate(get[c] * _D2R, ap, params, dt) / _D2R
     return t, get
 
 
@@ -174,7 +197,7 @@ def run_to_ulog(result, path) -> Path:
 
     notes = _notes(result)
     params = _flown_params(result)
-    t, c = _columns(result)
+    t, c = _columns(result, params)
     us = (T0_US + np.round(t * 1e6)).astype(np.uint64)
     f32 = lambda x: np.asarray(x, np.float32)  # noqa: E731 - uORB logs floats
     q = _quat(c["phi"], c["theta"], c["psi"])
@@ -231,7 +254,7 @@ def run_to_dataflash(result, path) -> Path:
 
     notes = _notes(result)
     params = _flown_params(result)
-    t, c = _columns(result)
+    t, c = _columns(result, params)
     us = (T0_US + np.round(t * 1e6)).astype(np.int64)
     rate_rows = list(zip(us.tolist(), c["p_ref"].tolist(), c["p"].tolist(), (c["u_lat"] / 100).tolist(),
                          c["q_ref"].tolist(), c["q"].tolist(), (c["u_lon"] / 100).tolist(),
