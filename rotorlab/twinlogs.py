@@ -11,13 +11,15 @@ What the files hold, per autopilot:
 
 - ULog (PX4 v1.14 layout): ``vehicle_rates_setpoint`` (the rate set-point the rate loop flew, excitation included),
   ``vehicle_angular_velocity`` (the twin's gyro through IMU_GYRO_CUTOFF, as PX4 logs it),
-  ``vehicle_torque_setpoint`` (the rate loop's normalised output), ``vehicle_thrust_setpoint``, ``vehicle_attitude`` and ``vehicle_attitude_setpoint`` (quaternions),
-  ``vehicle_status`` (armed, ALTCTL), ``vehicle_land_detected`` (airborne throughout: the flight starts in hover),
-  ``autotune_attitude_control_status`` (its state at 10 Hz, the layout before v1.17: 1 init, 2/3 roll and its
-  pause, 4/5 pitch, 6/7 yaw, 11 complete; and ``rate_sp``), and the flown parameters with ``MC_AT_*``.
-- DataFlash (Copter >= 3.4 layout): ``RATE`` (deg/s, the gyro through INS_GYRO_FILTER; normalised outputs), ``ATT`` (deg), ``CTUN.ThO``, ``MODE``
-  (ALT_HOLD, SYSTEMID per axis), ``EV`` (armed, not landed), ``SIDS`` (the SID settings at each mode entry,
-  SID_AXIS 7-9) and ``SIDD`` (every loop while the mode runs), ``PARM`` (flown parameters and ``SID_*``).
+  ``vehicle_torque_setpoint`` (the rate loop's normalised output), ``vehicle_thrust_setpoint``,
+  ``vehicle_attitude`` and ``vehicle_attitude_setpoint`` (quaternions), ``vehicle_status`` (armed, ALTCTL),
+  ``vehicle_land_detected`` (airborne throughout: the flight starts in hover), ``autotune_attitude_control_status``
+  (its state at 10 Hz, the layout before v1.17: 1 init, 2/3 roll and its pause, 4/5 pitch, 6/7 yaw, 11 complete;
+  and ``rate_sp``), and the flown parameters with ``MC_AT_*``.
+- DataFlash (Copter >= 3.4 layout): ``RATE`` (deg/s, the gyro through INS_GYRO_FILTER; normalised outputs),
+  ``ATT`` (deg), ``CTUN.ThO``, ``MODE`` (ALT_HOLD, SYSTEMID per axis), ``EV`` (armed, not landed), ``SIDS`` (the
+  SID settings at each mode entry, SID_AXIS 7-9) and ``SIDD`` (every loop while the mode runs), ``PARM`` (flown
+  parameters and ``SID_*``).
 
 Both logs carry the loop rate the twin flew as the autopilot's loop-rate parameter (``IMU_GYRO_RATEMAX``,
 ``SCHED_LOOP_RATE``): the twin flies the laws at its flight-software rate, and the controller rebuilt from the
