@@ -37,8 +37,8 @@ from rotorlab import autopilots
 from rotorlab.autopilots import filters
 from rotorlab.errors import ConfigError
 
-__all__ = ["fly_twin_log", "run_to_ulog", "run_to_dataflash", "true_rate_plant", "FORMATS", "T0_US",
-           "GYRO_CUTOFF_PARAM"]
+__all__ = ["fly_twin_log", "run_to_log", "run_to_ulog", "run_to_dataflash", "log_format", "true_rate_plant",
+           "FORMATS", "T0_US", "GYRO_CUTOFF_PARAM"]
 
 #: log suffix -> (format, the autopilot that writes it)
 FORMATS = {".ulg": ("ulog", "px4"), ".bin": ("dataflash", "ardupilot")}
@@ -144,6 +144,10 @@ def _notes(result):
     if "windows" not in notes or "excitation_params" not in notes:
         raise ConfigError("the run is not an autopilot identification flight", field="scenario",
                           expected="autopilot-sysid", got=result.info.get("scenario"))
+    if not notes["windows"]:
+        raise ConfigError("the run ended before its first excitation", field="duration_s",
+                          expected=f"more than the lead of {notes['options']['lead_s']} s",
+                          got=result.info.get("duration_s"))
     return notes
 
 
@@ -154,6 +158,9 @@ def _flown_params(result) -> dict:
     if ctl is None:
         raise ConfigError("the run flew no autopilot's laws", field="controller", expected="px4:... or ardupilot:...",
                           got=result.info.get("controller"))
+    if ctl["autopilot"] != _notes(result)["autopilot"]:
+        raise ConfigError(f"the run flew {ctl['autopilot']}'s laws with {_notes(result)['autopilot']}'s excitation",
+                          field="options.autopilot", expected=ctl["autopilot"], got=_notes(result)["autopilot"])
     ap = autopilots.get(ctl["autopilot"])
     params = {k: float(v) for k, v in ctl["params"].items()}
     params[ap.LOOP_RATE_PARAM] = float(round(ctl["loop_hz"]))
@@ -296,6 +303,42 @@ def run_to_dataflash(result, path) -> Path:
     return write_dataflash(path, messages, params)
 
 
+def log_format(path, fmt: str | None = None, autopilot: str | None = None) -> tuple[str, str]:
+    """``(format, autopilot)`` of a twin log at ``path``: the format from ``fmt`` or the suffix (:data:`FORMATS`), the
+    autopilot that writes it; ConfigError for an unknown suffix or format, or an ``autopilot`` that does not write
+    that format (the readers take the autopilot from the format).
+
+    Examples
+    --------
+    >>> log_format("flight.ulg")
+    ('ulog', 'px4')
+    """
+    path = Path(path)
+    by_name = {f: ap for f, ap in FORMATS.values()}
+    if fmt is None:
+        if path.suffix.lower() not in FORMATS:
+            raise ConfigError("unknown twin-log format", field="out_path",
+                              expected=f"a file ending in {' or '.join(FORMATS)}", got=str(path))
+        fmt = FORMATS[path.suffix.lower()][0]
+    if fmt not in by_name:
+        raise ConfigError(field="fmt", expected=f"one of {sorted(by_name)}", got=fmt)
+    if autopilot is not None and autopilot != by_name[fmt]:
+        raise ConfigError(f"a {fmt} log is {by_name[fmt]}'s", field="autopilot", expected=by_name[fmt], got=autopilot)
+    return fmt, by_name[fmt]
+
+
+def run_to_log(result, path, fmt: str | None = None) -> Path:
+    """Write an ``autopilot-sysid`` run as its autopilot's log: :func:`run_to_ulog` for ``.ulg``,
+    :func:`run_to_dataflash` for ``.bin`` (ConfigError when the run flew the other autopilot's laws).
+
+    Examples
+    --------
+    >>> run_to_log(res, "flight.ulg")  # doctest: +SKIP
+    """
+    fmt, _ = log_format(path, fmt, _notes(result)["autopilot"])
+    return run_to_ulog(result, path) if fmt == "ulog" else run_to_dataflash(result, path)
+
+
 def fly_twin_log(out_path, vehicle="tuhh-quad", autopilot: str | None = None, params=None,
                  axes=("roll", "pitch", "yaw"), duration_s: float | None = None, seed: int = 0,
                  fmt: str | None = None, options: dict | None = None) -> Path:
@@ -345,18 +388,8 @@ def fly_twin_log(out_path, vehicle="tuhh-quad", autopilot: str | None = None, pa
     from rotorlab.sim.scenarios import autopilot_sysid
 
     path = Path(out_path)
-    by_name = {f: (s, ap) for s, (f, ap) in FORMATS.items()}
-    if fmt is None:
-        if path.suffix.lower() not in FORMATS:
-            raise ConfigError("unknown twin-log format", field="out_path",
-                              expected=f"a file ending in {' or '.join(FORMATS)}", got=str(path))
-        fmt = FORMATS[path.suffix.lower()][0]
-    if fmt not in by_name:
-        raise ConfigError(field="fmt", expected=f"one of {sorted(by_name)}", got=fmt)
-    autopilot = autopilot or by_name[fmt][1]
-    if autopilot != by_name[fmt][1]:
-        raise ConfigError(f"a {fmt} log is {by_name[fmt][1]}'s", field="autopilot", expected=by_name[fmt][1],
-                          got=autopilot)
+    fmt, own = log_format(path, fmt, autopilot)
+    autopilot = own
     opts = {**(options or {}), "autopilot": autopilot, "axes": ",".join(axes)}
     o = autopilot_sysid.options({**autopilot_sysid.DEFAULTS, **opts})
     if duration_s is not None:
@@ -374,4 +407,4 @@ def fly_twin_log(out_path, vehicle="tuhh-quad", autopilot: str | None = None, pa
     if res.stopped:
         raise ConfigError(f"the twin's flight stopped early: {res.stopped}", field="params",
                           expected="laws that fly the vehicle through the excitation", got=spec.name)
-    return run_to_ulog(res, path) if fmt == "ulog" else run_to_dataflash(res, path)
+    return run_to_log(res, path, fmt)

@@ -193,3 +193,35 @@ def test_twin_dataflash_plant_through_the_controller_is_the_twins_true_linearisa
     m = ap_models.models[axis]["plant-indirect"]
     assert nugap(m.model.with_delay(), _truth(ap_models, axis)) < 0.05
     assert m.extra["params"]["tau_s"] == pytest.approx(0.0369, rel=0.05)
+
+
+def test_cli_run_writes_the_autopilot_log_and_refuses_a_mismatch(tmp_path, capsys):
+    from rotorlab.cli import main
+
+    base = ["run", "autopilot-sysid", "--vehicle", "tuhh-quad", "--duration", "4", "--option", "axes=roll",
+            "--option", "excite_s=2.0", "--json"]
+    ulg = tmp_path / "twin.ulg"
+    assert main([*base, "--controller", "px4:defaults", "--out", str(tmp_path / "r1"), "--autopilot-log", str(ulg)]) == 0
+    log = read_flight_log(ulg)
+    assert [i.label for i in log.excitation] == ["roll"] and log.params["MC_AT_SYSID_AMP"] == pytest.approx(0.7)
+    capsys.readouterr()
+    # a bad name is refused before the flight; PX4's laws with ArduPilot's chirp make no DataFlash log
+    assert main([*base, "--out", str(tmp_path / "r2"), "--autopilot-log", str(tmp_path / "twin.csv")]) == 2
+    assert "--autopilot-log" in capsys.readouterr().err
+    assert main([*base, "--controller", "px4:defaults", "--option", "autopilot=ardupilot", "--out",
+                 str(tmp_path / "r3"), "--autopilot-log", str(tmp_path / "twin.bin")]) == 2
+    err = capsys.readouterr().err
+    assert "flew px4's laws with ardupilot's excitation" in err and "Traceback" not in err
+    assert not (tmp_path / "twin.bin").exists()
+
+
+def test_a_run_shorter_than_the_plan_logs_what_it_flew(tmp_path):
+    from rotorlab.sim.runner import run_scenario
+    from rotorlab.twinlogs import run_to_ulog
+
+    res = run_scenario("autopilot-sysid", "tuhh-quad", duration_s=5.0, options={"excite_s": 3.0})
+    assert res.info["notes"]["windows"] == [["roll", 1.0, 4.0]]  # pitch would start at 6 s
+    assert [i.label for i in read_flight_log(run_to_ulog(res, tmp_path / "a.ulg")).excitation] == ["roll"]
+    res = run_scenario("autopilot-sysid", "tuhh-quad", duration_s=0.5)
+    with pytest.raises(ConfigError, match="before its first excitation"):
+        run_to_ulog(res, tmp_path / "b.ulg")

@@ -11,7 +11,8 @@ of one axis at a time, roll, pitch, yaw in turn:
   mode: the mode's 1 s delay, then the ``excite_s`` (``SID_T_REC``) record, then ``pause_s`` back in the previous
   mode.
 
-``run.json`` notes hold the plan (``windows``: axis, start and stop of each excitation state, s) and the
+``run.json`` notes hold the plan as flown (``windows``: axis, start and stop of each excitation state, s, cut at the
+run's duration; ``rotorlab run --duration`` defaults to the scenario's 37 s, the default plan) and the
 excitation's parameters in the autopilot's names (``excitation_params``), so a log exporter
 (``rotorlab.twinlogs``) writes the autopilot's own excitation messages.
 
@@ -129,7 +130,9 @@ def setup(ctx: Context) -> Setup:
     def rate_excitation(t):
         return table[min(int(round(t / dt)), last)]
 
-    notes = {"autopilot": o["autopilot"], "axes": list(o["axes"]), "windows": [list(w) for w in windows],
+    # the states the run's duration holds (a shorter run cuts the plan; run.json says what was flown)
+    flown = [[a, t0, min(t1, ctx.duration_s)] for a, t0, t1 in windows if t0 < ctx.duration_s]
+    notes = {"autopilot": o["autopilot"], "axes": [w[0] for w in flown], "windows": flown,
              "excitation_params": excitation_params(o), "options": {k: v for k, v in o.items() if k != "axes"}}
     return Setup(mode="cascade", altitude_hold=True, rate_excitation=rate_excitation,
                  controller=[AutopilotSpec.from_params(o["autopilot"])],
