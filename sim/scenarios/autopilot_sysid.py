@@ -22,13 +22,24 @@ Options
     ``px4`` (default) or ``ardupilot``: whose excitation, and whose laws when the run gives no controller.
 ``axes`` : str
     Comma-separated axes excited in turn (default ``"roll,pitch,yaw"``).
-``lead_s``, ``excite_s``, ``pause_s`` : float
-    Hover before the first axis (default 1 s), each axis's excitation (10 s), the pause after it (2 s).
+``lead_s`` : float
+    Hover before the first axis, s (default 1).
+``excite_s`` : float
+    Each axis's excitation, s (default 10; ArduPilot's ``SID_T_REC``).
+``pause_s`` : float
+    The pause after each axis, s (default 2, autotune's pause states).
 ``sysid_amp_rad_s`` : float
-    PX4's ``MC_AT_SYSID_AMP`` (default 0.7, its default).
-``sid_magnitude_dps``, ``sid_f_start_hz``, ``sid_f_stop_hz``, ``sid_t_fade_in_s``, ``sid_t_fade_out_s`` : float
-    ArduPilot's ``SID_MAGNITUDE`` (default 30 deg/s), ``SID_F_START_HZ`` (0.5), ``SID_F_STOP_HZ`` (40, its
-    default), ``SID_T_FADE_IN`` (1 s), ``SID_T_FADE_OUT`` (1 s); ``SID_T_REC`` is ``excite_s``.
+    PX4's ``MC_AT_SYSID_AMP`` (default 0.7, PX4's default).
+``sid_magnitude_dps`` : float
+    ArduPilot's ``SID_MAGNITUDE`` on the rate axes, deg/s (default 30).
+``sid_f_start_hz`` : float
+    ArduPilot's ``SID_F_START_HZ`` (default 0.5).
+``sid_f_stop_hz`` : float
+    ArduPilot's ``SID_F_STOP_HZ`` (default 40).
+``sid_t_fade_in_s`` : float
+    ArduPilot's ``SID_T_FADE_IN``, s (default 1).
+``sid_t_fade_out_s`` : float
+    ArduPilot's ``SID_T_FADE_OUT``, s (default 1).
 """
 
 from __future__ import annotations
