@@ -31,6 +31,10 @@ __all__ = [
     "multistep_3211",
     "spectrum_check",
     "SpectrumCheck",
+    "px4_autotune_signal",
+    "ardupilot_sysid_chirp",
+    "PX4_AUTOTUNE_PUBLISH_DT_S",
+    "ARDUPILOT_SYSID_DELAY_S",
 ]
 
 #: Published ANTEOS P2-A2 PRBS campaign (000_*.txt, "Identification experiments (3)"): level-hold
@@ -325,3 +329,109 @@ def spectrum_check(u, dt: float, band_rad_s=(4.0, 8.0), nperseg: int | None = No
     band_min_db = float(10 * np.log10(P[inband].min() / peak)) if peak > 0 and inband.any() else -np.inf
     excited = bool(band_min_db >= -max_drop_db and frac >= min_fraction)
     return SpectrumCheck(w, P, (lo, hi), frac, band_min_db, excited)
+
+
+#: PX4 autotune's signal clock: the module publishes (and steps its signal) every 100 ms, and its wash-out filter
+#: is a first-order low-pass of time constant 0.2 s at that rate (``_publishing_dt_s``, ``_signal_filter``,
+#: PX4-Autopilot src/modules/mc_autotune_attitude_control/mc_autotune_attitude_control.hpp and ``.cpp``, ``init``)
+PX4_AUTOTUNE_PUBLISH_DT_S = 0.1
+PX4_AUTOTUNE_WASHOUT_S = 0.2
+
+
+def px4_autotune_signal(t_s, amplitude_rad_s: float = 0.7, publish_dt_s: float = PX4_AUTOTUNE_PUBLISH_DT_S,
+                        washout_s: float = PX4_AUTOTUNE_WASHOUT_S) -> np.ndarray:
+    """PX4 multicopter autotune's identification signal on one axis's rate set-point, rad/s, at times ``t_s``
+    (s, from the start of the axis's excitation state).
+
+    The facts, from PX4-Autopilot ``src/modules/mc_autotune_attitude_control/mc_autotune_attitude_control.cpp``
+    (``getIdentificationSignal``, the state machine's per-axis initialisation) and its ``.hpp``:
+
+    - the signal is updated once per publication, every ``publish_dt_s`` (100 ms), and held in between;
+    - a step of height ``MC_AT_SYSID_AMP`` (default 0.7) or 0 toggles: the first level (the step up) lasts 6
+      publications, the next 10, then each level one publication shorter than the one before down to 2, then
+      6, 5, 4, 3, 2 over and over (the step counter starts at 5 of a maximum of 10 "to keep the drone
+      centred"; a level lasts the maximum plus one, and the maximum counts down to 1 and is then reset to 5);
+    - the output is the step minus a first-order low-pass of it (time constant ``washout_s`` = 0.2 s, discrete
+      ``y += dt / (tau + dt) (x - y)`` at the publication rate, updated after the output is formed): a wash-out
+      (high-passed) square wave, whose mean tends to zero.
+
+    The identification state of each axis starts the sequence afresh (filter reset to 0, counters as above).
+
+    Parameters
+    ----------
+    t_s : array_like
+        Times since the axis's state began, s (negative times give 0).
+    amplitude_rad_s : float
+        ``MC_AT_SYSID_AMP``.
+
+    Returns
+    -------
+    ndarray
+        Rate set-point added to the attitude controller's, rad/s.
+
+    Examples
+    --------
+    >>> px4_autotune_signal([0.0, 0.05, 0.1, 0.55, 0.6], 0.7).round(4)  # the first step, washed out, then 0
+    array([ 0.7   ,  0.7   ,  0.4667,  0.0922, -0.6385])
+    """
+    t = np.asarray(t_s, dtype=float)
+    k_max = int(np.floor(max(float(t.max(initial=0.0)), 0.0) / publish_dt_s + 1e-9)) + 1
+    alpha = publish_dt_s / (washout_s + publish_dt_s)
+    out = np.empty(k_max)
+    lowpass, sign, counter, max_steps = 0.0, 1, 5, 10
+    for k in range(k_max):
+        if counter > max_steps:
+            sign, counter = 1 - sign, 0
+            max_steps = max_steps - 1 if max_steps > 1 else 5
+        counter += 1
+        step = sign * amplitude_rad_s
+        out[k] = step - lowpass
+        lowpass += alpha * (step - lowpass)
+    idx = np.floor(t / publish_dt_s + 1e-9).astype(int)
+    return np.where(t < 0, 0.0, out[np.clip(idx, 0, k_max - 1)])
+
+
+#: ArduCopter SYSID mode waits this long after the mode is entered before the chirp starts (``SYSTEM_ID_DELAY``,
+#: ArduCopter/mode_systemid.cpp)
+ARDUPILOT_SYSID_DELAY_S = 1.0
+
+
+def ardupilot_sysid_chirp(t_s, magnitude: float, f_start_hz: float, f_stop_hz: float, t_fade_in_s: float,
+                          t_rec_s: float, t_fade_out_s: float, delay_s: float = ARDUPILOT_SYSID_DELAY_S) -> np.ndarray:
+    """ArduCopter SYSID mode's chirp, at times ``t_s`` (s since the mode was entered), in the unit of
+    ``magnitude`` (``SID_MAGNITUDE``: deg/s on the rate axes SID_AXIS 7-9, added to the body-frame rate target).
+
+    The facts, from ArduPilot ``libraries/AP_Math/chirp.cpp`` (``Chirp::init``, ``Chirp::update``) and
+    ``ArduCopter/mode_systemid.cpp`` (``init``: ``time_const_freq = 2 / SID_F_START_HZ``, two cycles at the start
+    frequency; ``run``: the chirp is evaluated at the mode's time less ``SYSTEM_ID_DELAY`` = 1 s):
+
+    - window: a raised cosine ``0.5 - 0.5 cos(pi t / T_in)`` over the fade-in, 1, then a raised cosine down over the
+      last ``T_out`` of ``T_rec``, 0 outside ``(0, T_rec]``;
+    - frequency: ``w_min = 2 pi f_start`` held for ``T_c = 2 / f_start`` (output ``sin(w_min (t - T_c))``), then
+      exponential, ``w(t) = w_min exp(B (t - T_c) / (T_rec - T_c))`` with ``B = ln(w_max / w_min)``, phase
+      ``w_min (T_rec - T_c) / B (exp(B (t - T_c) / (T_rec - T_c)) - 1)``; a constant sine when
+      ``f_start == f_stop``.
+
+    Examples
+    --------
+    >>> u = ardupilot_sysid_chirp(np.arange(0, 14, 0.0025), 20.0, 0.5, 20.0, 2.0, 12.0, 1.0)
+    >>> bool(np.all(u[:400] == 0.0)), round(float(np.abs(u).max()), 1)  # the first second: the mode's delay
+    (True, 20.0)
+    """
+    t = np.asarray(t_s, dtype=float) - delay_s
+    w_min, w_max = 2 * np.pi * f_start_hz, 2 * np.pi * f_stop_hz
+    t_const = 2.0 / f_start_hz
+    window = np.select(
+        [t <= 0, t <= t_fade_in_s, t <= t_rec_s - t_fade_out_s, t <= t_rec_s],
+        [0.0, 0.5 - 0.5 * np.cos(np.pi * t / max(t_fade_in_s, 1e-12)), 1.0,
+         0.5 - 0.5 * np.cos(np.pi * (t - (t_rec_s - t_fade_out_s)) / max(t_fade_out_s, 1e-12) + np.pi)], 0.0)
+    if w_min == w_max:
+        phase = w_min * t
+    else:
+        B = np.log(w_max / w_min)
+        span = t_rec_s - t_const
+        with np.errstate(over="ignore"):
+            sweep_phase = (w_min * span / B) * np.expm1(B * (t - t_const) / span)
+        phase = np.where(t <= t_const, w_min * (t - t_const), sweep_phase)
+    on = (t > 0) & (t <= t_rec_s)
+    return np.where(on, window * magnitude * np.sin(np.where(on, phase, 0.0)), 0.0)

@@ -81,6 +81,14 @@ def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: fl
     )
     if controller is not None:
         add_controllers(fs, controller)
+    if setup.rate_excitation is not None:
+        aps = [pl for pl in fs.plugins if isinstance(pl, AutopilotController)]
+        if not aps:
+            raise ConfigError("this scenario excites an autopilot's rate set-point", field="controller",
+                              expected="an autopilot's laws (px4:PARAMS or ardupilot:PARAMS)",
+                              got=controller if controller is not None else "the built-in cascade")
+        for pl in aps:
+            pl.rate_excitation = setup.rate_excitation
     return fs
 
 

@@ -40,6 +40,9 @@ def add_parser(sub):
                    help="scenario option (repeatable); values are parsed as TOML scalars or lists")
     p.add_argument("--rerun", default=None, metavar="FILE.rrd",
                    help="also write a rerun recording (3D scene, poses, thrust, signals); open it with rotorlab view")
+    p.add_argument("--autopilot-log", default=None, metavar="FILE.ulg|FILE.bin",
+                   help="also write the flight as the autopilot's log (scenario autopilot-sysid): .ulg PX4 ULog, "
+                        ".bin ArduPilot DataFlash")
     p.add_argument("--json", action="store_true", help="print one JSON object (run.json plus timings) instead of "
                                                        "the summary; no progress bar")
     return p
@@ -129,6 +132,13 @@ def run(args) -> int:
             rrd = check_rrd_path(args.rerun)  # before the run: a bad path must not cost a simulation
         except RotorlabError as exc:
             raise CLIError(str(exc)) from None
+    if args.autopilot_log:
+        from rotorlab.twinlogs import log_format
+
+        try:
+            log_format(args.autopilot_log)  # before the run: a bad name must not cost a simulation
+        except RotorlabError as exc:
+            raise CLIError(f"--autopilot-log: {exc}") from None
     from rotorlab.atomic import check_output
 
     inputs = [vehicle.path, *(c for c in args.controller if Path(c).suffix in (".json", ".toml"))]
@@ -155,6 +165,10 @@ def run(args) -> int:
             from rotorlab.sim.rerun_log import record_run
 
             record_run(res, rrd)
+        if args.autopilot_log and not res.stopped:
+            from rotorlab.twinlogs import run_to_log
+
+            run_to_log(res, args.autopilot_log)
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
     if args.json:

@@ -11,7 +11,9 @@ then saturates the commands and mixes them. The commands clipped at the previous
 saturation flags (PX4) or the motors' limit flags (ArduPilot) for the integrators.
 
 With ``rate_reference`` (a callable ``t -> (p, q, r)`` set-point in deg/s) the attitude law is bypassed: the
-autopilot's rate (acro) mode.
+autopilot's rate (acro) mode. With ``rate_excitation`` (a callable ``t -> (p, q, r)`` in deg/s) the attitude law
+flies and the excitation is added to its rate set-point, where PX4's autotune (``autotune_attitude_control_status
+.rate_sp``, added by mc_att_control) and ArduCopter's SYSID mode on its rate axes (``rate_bf_*_sysid``) inject theirs.
 """
 
 from __future__ import annotations
@@ -114,6 +116,9 @@ class AutopilotController:
         The flight software's command saturations, for the integrators' saturation flags.
     rate_reference : callable, optional
         ``t -> (p, q, r)`` rate set-point, deg/s: rate mode, no attitude law.
+    rate_excitation : callable, optional
+        ``t -> (p, q, r)``, deg/s, added to the attitude law's rate set-point (the autopilots' identification
+        excitation); the rate set-points returned include it.
 
     Examples
     --------
@@ -138,7 +143,8 @@ class AutopilotController:
     flies_rate_loop = True
 
     def __init__(self, spec: AutopilotSpec, dt_s: float, u_limit_pct: float = math.inf,
-                 yaw_u_limit_pct: float = math.inf, rate_reference: Callable | None = None):
+                 yaw_u_limit_pct: float = math.inf, rate_reference: Callable | None = None,
+                 rate_excitation: Callable | None = None):
         if not isinstance(spec, AutopilotSpec):
             raise ConfigError(field="controller", expected="an AutopilotSpec", got=type(spec).__name__)
         self.spec = spec
@@ -149,6 +155,7 @@ class AutopilotController:
         self.limits = (float(u_limit_pct), float(u_limit_pct), float(yaw_u_limit_pct))
         self._px4 = spec.autopilot == "px4"
         self.rate_reference = rate_reference
+        self.rate_excitation = rate_excitation
         self.outputs = spec.outputs
         self.add_commands = False
         self.reset()
@@ -189,6 +196,9 @@ class AutopilotController:
         else:
             rate_sp = self.att.update(euler_to_quat(phi * _D2R, theta * _D2R, psi * _D2R),
                                       euler_to_quat(phi_ref * _D2R, theta_ref * _D2R, psi_ref * _D2R))
+            if self.rate_excitation is not None:
+                ex = self.rate_excitation(t)
+                rate_sp = (rate_sp[0] + ex[0] * _D2R, rate_sp[1] + ex[1] * _D2R, rate_sp[2] + ex[2] * _D2R)
         gyro = (p * _D2R, q * _D2R, r * _D2R)
         if self._px4:
             tq = self.rate.step(rate_sp, gyro, sat_pos=self._sat_pos, sat_neg=self._sat_neg)

@@ -31,6 +31,7 @@ SCENARIOS = {
     "prbs-flight": "prbs_flight",
     "thrust-sweep": "thrust_sweep",
     "thrust-steps": "thrust_steps",
+    "autopilot-sysid": "autopilot_sysid",
 }
 
 
@@ -78,6 +79,9 @@ class Setup:
     #: discrete controllers (ControllerSpec) the scenario flies in place of the cascade, e.g. the known PD of a
     #: closed-loop identification; a controller given to the run replaces them
     controller: list = dataclasses.field(default_factory=list)
+    #: ``rate_excitation(t) -> (p, q, r)`` deg/s added to an autopilot's rate set-point (PX4 autotune, ArduCopter
+    #: SYSID); a run of such a set-up must fly an autopilot's laws (``--controller px4:...``/``ardupilot:...``)
+    rate_excitation: Callable | None = None
 
 
     def limits(self, vehicle):
