@@ -282,17 +282,18 @@ class AttitudeController:
 
     def update(self, q, q_sp) -> tuple:
         """Body rate target ``(p, q, r)``, rad/s, from the attitude ``q`` and its set-point ``q_sp``."""
+        # written out in floats, the axes unrolled: it runs every tick
         w1, x1, y1, z1 = float(q[0]), -float(q[1]), -float(q[2]), -float(q[3])  # q^-1 of a unit quaternion
-        w2, x2, y2, z2 = (float(v) for v in q_sp)
+        w2, x2, y2, z2 = map(float, q_sp)
         w = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
-        v = (w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2, w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-             w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
+        v0, v1, v2 = (w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2, w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                      w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
         if w < 0:
-            w, v = -w, tuple(-c for c in v)
-        s = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+            w, v0, v1, v2 = -w, -v0, -v1, -v2
+        s = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         k = 0.0 if s < 1e-12 else 2.0 * math.atan2(s, w) / s
-        out = []
-        for i in range(3):
-            r, lim = self.p[i] * v[i] * k, self.rate_limit[i]
-            out.append(lim if r > lim else (-lim if r < -lim else r))
-        return tuple(out)
+        p0, p1, p2 = self.p
+        l0, l1, l2 = self.rate_limit
+        r0, r1, r2 = p0 * v0 * k, p1 * v1 * k, p2 * v2 * k
+        return (l0 if r0 > l0 else (-l0 if r0 < -l0 else r0), l1 if r1 > l1 else (-l1 if r1 < -l1 else r1),
+                l2 if r2 > l2 else (-l2 if r2 < -l2 else r2))

@@ -291,47 +291,12 @@ class RateController:
         return tuple(out)
 
 
-def _qmul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return (w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
-
-
-def _qinv(q):
-    w, x, y, z = q
-    n = w * w + x * x + y * y + z * z
-    return (w / n, -x / n, -y / n, -z / n)
-
-
 def _canonical(q):
     # the one of q, -q whose first non-zero component is positive (PX4 Quaternion::canonical)
     for c in q:
         if c != 0.0:
             return q if c > 0 else (-q[0], -q[1], -q[2], -q[3])
     return q
-
-
-def _dcm_z(q):
-    """Third column of the rotation matrix of ``q`` = (w, x, y, z) (the body z axis in the world frame)."""
-    w, x, y, z = q
-    return (2 * (w * y + x * z), 2 * (y * z - w * x), w * w - x * x - y * y + z * z)
-
-
-def _shortest_arc(src, dst, eps=1e-5):
-    """Unit quaternion of the smallest rotation taking direction ``src`` to ``dst``."""
-    sx, sy, sz = src
-    dx, dy, dz = dst
-    cx, cy, cz = sy * dz - sz * dy, sz * dx - sx * dz, sx * dy - sy * dx
-    d = sx * dx + sy * dy + sz * dz
-    if math.sqrt(cx * cx + cy * cy + cz * cz) < eps and d < 0:
-        # opposite directions: a half turn about an axis normal to src
-        ox, oy, oz = (1.0, 0.0, 0.0) if abs(sx) < 0.9 else (0.0, 1.0, 0.0)
-        w, x, y, z = 0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox
-    else:
-        w, x, y, z = d + math.sqrt((sx * sx + sy * sy + sz * sz) * (dx * dx + dy * dy + dz * dz)), cx, cy, cz
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    return (w / n, x / n, y / n, z / n)
 
 
 class AttitudeController:
@@ -364,24 +329,53 @@ class AttitudeController:
 
     def update(self, q, q_sp, yawspeed_sp: float = float("nan")) -> tuple:
         """Body rate set-point ``(p, q, r)``, rad/s, from the attitude ``q`` and its set-point ``q_sp``."""
-        # written out in floats (it runs every tick), in PX4's order of operations
-        q = tuple(q)
-        qd = tuple(q_sp)
-        qd_red = _shortest_arc(_dcm_z(q), _dcm_z(qd))
-        if abs(qd_red[1]) > 1 - 1e-5 or abs(qd_red[2]) > 1 - 1e-5:
-            qd_red = qd
+        # written out in floats in one body (it runs every tick: a helper call per quaternion product costs as much
+        # as the product), in PX4's order of operations: Quaternion products, inverses (conjugate over the squared
+        # norm), Dcm z columns and the shortest arc as PX4's Quatf functions compute them
+        qw, qx, qy, qz = q
+        dw, dx, dy, dz = q_sp
+        # the body z axis (third column of the rotation matrix) of q and of q_sp
+        sx, sy, sz = 2 * (qw * qy + qx * qz), 2 * (qy * qz - qw * qx), qw * qw - qx * qx - qy * qy + qz * qz
+        tx, ty, tz = 2 * (dw * dy + dx * dz), 2 * (dy * dz - dw * dx), dw * dw - dx * dx - dy * dy + dz * dz
+        # the smallest rotation taking the one onto the other
+        cx, cy, cz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
+        dot = sx * tx + sy * ty + sz * tz
+        if math.sqrt(cx * cx + cy * cy + cz * cz) < 1e-5 and dot < 0:
+            # opposite directions: a half turn about an axis normal to the body z axis
+            ox, oy, oz = (1.0, 0.0, 0.0) if abs(sx) < 0.9 else (0.0, 1.0, 0.0)
+            w, x, y, z = 0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox
         else:
-            qd_red = _qmul(qd_red, q)
-        q_mix = _canonical(_qmul(_qinv(qd_red), qd))
-        c0 = min(max(q_mix[0], -1.0), 1.0)
-        c3 = min(max(q_mix[3], -1.0), 1.0)
-        w = self.yaw_w
-        qd = _qmul(qd_red, (math.cos(w * math.acos(c0)), 0.0, 0.0, math.sin(w * math.asin(c3))))
-        qe = _canonical(_qmul(_qinv(q), qd))
+            w, x, y, z = dot + math.sqrt((sx * sx + sy * sy + sz * sz) * (tx * tx + ty * ty + tz * tz)), cx, cy, cz
+        n = math.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w / n, x / n, y / n, z / n
+        if abs(x) > 1 - 1e-5 or abs(y) > 1 - 1e-5:
+            rw, rx, ry, rz = dw, dx, dy, dz
+        else:  # the tilt rotation times q: the attitude of thrust aligned, yaw kept
+            rw, rx, ry, rz = (w * qw - x * qx - y * qy - z * qz, w * qx + x * qw + y * qz - z * qy,
+                              w * qy - x * qz + y * qw + z * qx, w * qz + x * qy - y * qx + z * qw)
+        # q_mix = canonical(qd_red^-1 q_sp); only its w and z parts are read
+        n = rw * rw + rx * rx + ry * ry + rz * rz
+        w, x, y, z = rw / n, -rx / n, -ry / n, -rz / n
+        mix = (w * dw - x * dx - y * dy - z * dz, w * dx + x * dw + y * dz - z * dy,
+               w * dy - x * dz + y * dw + z * dx, w * dz + x * dy - y * dx + z * dw)
+        mw, _, _, mz = _canonical(mix)
+        c0 = -1.0 if mw < -1.0 else (1.0 if mw > 1.0 else mw)  # min(max(v, -1), 1), a NaN kept
+        c3 = -1.0 if mz < -1.0 else (1.0 if mz > 1.0 else mz)
+        yw = self.yaw_w
+        ew, ez = math.cos(yw * math.acos(c0)), math.sin(yw * math.asin(c3))
+        # q_d = qd_red (ew, 0, 0, ez), the zero terms kept: the very sums of a general product
+        dw, dx, dy, dz = (rw * ew - rx * 0.0 - ry * 0.0 - rz * ez, rw * 0.0 + rx * ew + ry * ez - rz * 0.0,
+                          rw * 0.0 - rx * ez + ry * ew + rz * 0.0, rw * ez + rx * 0.0 - ry * 0.0 + rz * ew)
+        # q_e = canonical(q^-1 q_d)
+        n = qw * qw + qx * qx + qy * qy + qz * qz
+        w, x, y, z = qw / n, -qx / n, -qy / n, -qz / n
+        _, ex, ey, ez = _canonical((w * dw - x * dx - y * dy - z * dz, w * dx + x * dw + y * dz - z * dy,
+                                    w * dy - x * dz + y * dw + z * dx, w * dz + x * dy - y * dx + z * dw))
         p0, p1, p2 = self.p
-        r0, r1, r2 = 2.0 * qe[1] * p0, 2.0 * qe[2] * p1, 2.0 * qe[3] * p2
+        r0, r1, r2 = 2.0 * ex * p0, 2.0 * ey * p1, 2.0 * ez * p2
         if yawspeed_sp == yawspeed_sp and abs(yawspeed_sp) != math.inf:
-            z0, z1, z2 = _dcm_z(_qinv(q))
+            # the world z axis in the body: the third column of the rotation matrix of q^-1
+            z0, z1, z2 = 2 * (w * y + x * z), 2 * (y * z - w * x), w * w - x * x - y * y + z * z
             r0, r1, r2 = r0 + z0 * yawspeed_sp, r1 + z1 * yawspeed_sp, r2 + z2 * yawspeed_sp
         l0, l1, l2 = self.rate_limit
         return (l0 if r0 > l0 else (-l0 if r0 < -l0 else r0), l1 if r1 > l1 else (-l1 if r1 < -l1 else r1),

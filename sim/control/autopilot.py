@@ -152,6 +152,7 @@ class AutopilotController:
         self.ap = autopilots.get(spec.autopilot)
         self.rate = self.ap.RateController(spec.params, self.dt)
         self.att = self.ap.AttitudeController(spec.params)
+        self._rate_step, self._att_update = self.rate.step, self.att.update
         self.limits = (float(u_limit_pct), float(u_limit_pct), float(yaw_u_limit_pct))
         self._px4 = spec.autopilot == "px4"
         self.rate_reference = rate_reference
@@ -190,26 +191,27 @@ class AutopilotController:
         >>> round(p_ref, 3), round(u_lat, 3)  # MC_ROLL_P = 4: 4 deg/s; MC_ROLLRATE_P = 0.15 per rad/s: 1.047 %
         (4.0, 1.047)
         """
-        # plain floats throughout: it runs every tick
+        # plain floats throughout, the laws' methods bound once (__init__): it runs every tick
         if self.rate_reference is not None:
             rate_sp = tuple(float(v) * _D2R for v in self.rate_reference(t))
         else:
-            rate_sp = self.att.update(euler_to_quat(phi * _D2R, theta * _D2R, psi * _D2R),
-                                      euler_to_quat(phi_ref * _D2R, theta_ref * _D2R, psi_ref * _D2R))
+            rate_sp = self._att_update(euler_to_quat(phi * _D2R, theta * _D2R, psi * _D2R),
+                                       euler_to_quat(phi_ref * _D2R, theta_ref * _D2R, psi_ref * _D2R))
             if self.rate_excitation is not None:
                 ex = self.rate_excitation(t)
                 rate_sp = (rate_sp[0] + ex[0] * _D2R, rate_sp[1] + ex[1] * _D2R, rate_sp[2] + ex[2] * _D2R)
         gyro = (p * _D2R, q * _D2R, r * _D2R)
+        sat_pos, sat_neg = self._sat_pos, self._sat_neg
         if self._px4:
-            tq = self.rate.step(rate_sp, gyro, sat_pos=self._sat_pos, sat_neg=self._sat_neg)
+            tq0, tq1, tq2 = self._rate_step(rate_sp, gyro, sat_pos, sat_neg)
         else:
-            tq = self.rate.step(rate_sp, gyro, limit=(self._sat_pos[0] or self._sat_neg[0],
-                                                      self._sat_pos[1] or self._sat_neg[1],
-                                                      self._sat_pos[2] or self._sat_neg[2]))
-        u0, u1, u2 = TORQUE_TO_PCT * tq[0], TORQUE_TO_PCT * tq[1], TORQUE_TO_PCT * tq[2]
+            tq0, tq1, tq2 = self._rate_step(rate_sp, gyro, (sat_pos[0] or sat_neg[0], sat_pos[1] or sat_neg[1],
+                                                            sat_pos[2] or sat_neg[2]))
+        u0, u1, u2 = TORQUE_TO_PCT * tq0, TORQUE_TO_PCT * tq1, TORQUE_TO_PCT * tq2
         if self.add_commands:
             u0, u1, u2 = u0 + u_lat, u1 + u_lon, u2 + u_yaw
         l0, l1, l2 = self.limits
         self._sat_pos = (u0 > l0, u1 > l1, u2 > l2)
         self._sat_neg = (u0 < -l0, u1 < -l1, u2 < -l2)
-        return u0, u1, u2, rate_sp[0] / _D2R, rate_sp[1] / _D2R, rate_sp[2] / _D2R
+        r0, r1, r2 = rate_sp
+        return u0, u1, u2, r0 / _D2R, r1 / _D2R, r2 / _D2R
