@@ -3,7 +3,8 @@ the published ANTEOS campaign and its design for a target band, log sweeps, doub
 and a spectrum check of how much power lands in a band.
 
 Used by both the simulator (to fly the experiments) and the identification library (to design them), so it
-imports neither; numpy only (scipy.signal for the Welch PSD inside :func:`spectrum_check`).
+imports neither; numpy, scipy.signal (the Welch PSD of :func:`spectrum_check`) and the autopilots' own
+excitation laws (:mod:`rotorlab.autopilots`, ground floor like this module).
 All signals are numpy arrays sampled at ``dt`` seconds; random ones take a ``seed`` or a
 ``numpy.random.Generator`` ``rng``.
 """
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import welch
 
+from rotorlab.autopilots import px4_autotune
 from rotorlab.errors import ConfigError
 
 __all__ = [
@@ -33,7 +35,6 @@ __all__ = [
     "SpectrumCheck",
     "px4_autotune_signal",
     "ardupilot_sysid_chirp",
-    "PX4_AUTOTUNE_PUBLISH_DT_S",
     "ARDUPILOT_SYSID_DELAY_S",
 ]
 
@@ -334,28 +335,12 @@ def spectrum_check(u, dt: float, band_rad_s=(4.0, 8.0), nperseg: int | None = No
 #: PX4 autotune's signal clock: the module publishes (and steps its signal) every 100 ms, and its wash-out filter
 #: is a first-order low-pass of time constant 0.2 s at that rate (``_publishing_dt_s``, ``_signal_filter``,
 #: PX4-Autopilot src/modules/mc_autotune_attitude_control/mc_autotune_attitude_control.hpp and ``.cpp``, ``init``)
-PX4_AUTOTUNE_PUBLISH_DT_S = 0.1
-PX4_AUTOTUNE_WASHOUT_S = 0.2
-
-
-def px4_autotune_signal(t_s, amplitude_rad_s: float = 0.7, publish_dt_s: float = PX4_AUTOTUNE_PUBLISH_DT_S,
-                        washout_s: float = PX4_AUTOTUNE_WASHOUT_S) -> np.ndarray:
+def px4_autotune_signal(t_s, amplitude_rad_s: float = 0.7) -> np.ndarray:
     """PX4 multicopter autotune's identification signal on one axis's rate set-point, rad/s, at times ``t_s``
-    (s, from the start of the axis's excitation state).
-
-    The facts, from PX4-Autopilot ``src/modules/mc_autotune_attitude_control/mc_autotune_attitude_control.cpp``
-    (``getIdentificationSignal``, the state machine's per-axis initialisation) and its ``.hpp``:
-
-    - the signal is updated once per publication, every ``publish_dt_s`` (100 ms), and held in between;
-    - a step of height ``MC_AT_SYSID_AMP`` (default 0.7) or 0 toggles: the first level (the step up) lasts 6
-      publications, the next 10, then each level one publication shorter than the one before down to 2, then
-      6, 5, 4, 3, 2 over and over (the step counter starts at 5 of a maximum of 10 "to keep the drone
-      centred"; a level lasts the maximum plus one, and the maximum counts down to 1 and is then reset to 5);
-    - the output is the step minus a first-order low-pass of it (time constant ``washout_s`` = 0.2 s, discrete
-      ``y += dt / (tau + dt) (x - y)`` at the publication rate, updated after the output is formed): a wash-out
-      (high-passed) square wave, whose mean tends to zero.
-
-    The identification state of each axis starts the sequence afresh (filter reset to 0, counters as above).
+    (s, from the start of the axis's excitation state): the module's publishing-tick sequence
+    (:class:`rotorlab.autopilots.px4_autotune.StepSignal`, where the facts and their PX4 sources are) held
+    between its ticks (:data:`rotorlab.autopilots.px4_autotune.PUBLISH_S`, 100 ms). The identification state
+    of each axis starts the sequence afresh.
 
     Parameters
     ----------
@@ -375,19 +360,11 @@ def px4_autotune_signal(t_s, amplitude_rad_s: float = 0.7, publish_dt_s: float =
     array([ 0.7   ,  0.7   ,  0.4667,  0.0922, -0.6385])
     """
     t = np.asarray(t_s, dtype=float)
-    k_max = int(np.floor(max(float(t.max(initial=0.0)), 0.0) / publish_dt_s + 1e-9)) + 1
-    alpha = publish_dt_s / (washout_s + publish_dt_s)
-    out = np.empty(k_max)
-    lowpass, sign, counter, max_steps = 0.0, 1, 5, 10
-    for k in range(k_max):
-        if counter > max_steps:
-            sign, counter = 1 - sign, 0
-            max_steps = max_steps - 1 if max_steps > 1 else 5
-        counter += 1
-        step = sign * amplitude_rad_s
-        out[k] = step - lowpass
-        lowpass += alpha * (step - lowpass)
-    idx = np.floor(t / publish_dt_s + 1e-9).astype(int)
+    tick_s = px4_autotune.PUBLISH_S
+    k_max = int(np.floor(max(float(t.max(initial=0.0)), 0.0) / tick_s + 1e-9)) + 1
+    signal = px4_autotune.StepSignal(amplitude_rad_s)
+    out = np.array([signal.next() for _ in range(k_max)])
+    idx = np.floor(t / tick_s + 1e-9).astype(int)
     return np.where(t < 0, 0.0, out[np.clip(idx, 0, k_max - 1)])
 
 
