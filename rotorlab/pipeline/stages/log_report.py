@@ -1,0 +1,204 @@
+"""Log stage 5, report: ``OUT/report/report.md`` and ``summary.json`` (every number), the parameter file and the
+calibrated vehicle TOML beside them.
+
+The report leads with what a pilot needs before flying the new parameters: per axis the log's set against the
+tuned set (rate and angle step, input-disturbance peak, margins, motor-command noise) and a plain verdict; then
+the evidence (identification and its held-out fit, the calibrated twin's prediction of the held-out flight, the
+calibration, the twin scenarios, notes).
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+
+from rotorlab import atomic
+from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
+
+__all__ = ["STAGE", "verdict"]
+
+#: a tuned value this much worse than the log's (relative) counts as worse in the verdict
+WORSE = 0.05
+
+
+def _f(x, fmt=".3g", unit=""):
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "-"
+    return f"{x:{fmt}}{unit}"
+
+
+def _ms(x):
+    return _f(None if x is None else 1e3 * x, ".0f", " ms")
+
+
+def _deg(x):
+    return _f(None if x is None else math.degrees(x), ".3g", " deg")
+
+
+def _hover_noise(val: dict, axis: str, name: str):
+    """High-frequency power (above the scenario's cut) of the axis command in hover, %^2; None where not logged."""
+    m = (((val.get("twin") or {}).get("hover") or {}).get(name) or {}).get("all") or {}
+    return ((m.get(axis) or {}).get("control") or {}).get("hf_power")
+
+
+def verdict(tune: dict, val: dict) -> tuple[list, dict]:
+    """Plain sentences (the first says whether to fly the tuned set) and, per axis, what got worse."""
+    if "skipped" in tune:
+        return [f"Nothing was tuned: {tune['skipped']}. Keep the log's parameters."], {}
+    if tune.get("failed"):
+        return [f"Do not fly the tuned set: hard goals not met ({'; '.join(tune['failed'])}); its file "
+                f"`{tune['params_file']}` is marked as failing. Keep the log's parameters."], {}
+    stopped = [f"{k}: {r['tuned']['stopped']}" for k, r in (val.get("twin") or {}).items()
+               if (r.get("tuned") or {}).get("stopped")]
+    if stopped:
+        return [f"Do not fly the tuned set: the twin did not complete {'; '.join(stopped)}."], {}
+    worse = {}
+    for axis in tune["axes"]:
+        an = tune["analysis"]
+        lin = (val.get("linear") or {}).get(axis) or {}
+        items = []
+        if not an["tuned"][axis]["stable"] or not all(v.get("stable", True) for v in (lin.get("tuned") or {}).values()):
+            items.append("unstable")
+        else:
+            if an["tuned"][axis]["disk_alpha"] < an["log"][axis]["disk_alpha"] * (1 - WORSE):
+                items.append(f"disk margin {an['log'][axis]['disk_alpha']:.3f} -> {an['tuned'][axis]['disk_alpha']:.3f}")
+            if an["tuned"][axis]["noise_gain"] > an["log"][axis]["noise_gain"] * (1 + WORSE):
+                items.append(f"gyro-noise gain {an['log'][axis]['noise_gain']:.3g} -> "
+                             f"{an['tuned'][axis]['noise_gain']:.3g}")
+            dl, dt = (lin.get(s, {}).get("disturbance", {}).get("peak_rad") for s in ("log", "tuned"))
+            if dl is not None and dt is not None and dt > dl * (1 + WORSE):
+                items.append(f"disturbance peak {math.degrees(dl):.3g} -> {math.degrees(dt):.3g} deg")
+            hl, ht = _hover_noise(val, axis, "log"), _hover_noise(val, axis, "tuned")
+            if hl and ht and ht > hl * (1 + WORSE) * 1.5:
+                items.append(f"motor-command noise in hover {hl:.3g} -> {ht:.3g} %^2")
+        if items:
+            worse[axis] = items
+    unstable = [a for a, it in worse.items() if "unstable" in it]
+    if unstable:
+        return [f"Do not fly the tuned set: the calibrated twin is unstable with it on {', '.join(unstable)}."], worse
+    lines = [f"Fly the tuned set `{tune['params_file']}` on {', '.join(tune['axes'])}: its hard goals (crossover band, "
+             "disk margin floor, gyro-noise bound) are met on the identified plants"
+             + (", and on the calibrated twin nothing got worse than the log's set." if not worse else
+                "; on the calibrated twin some figures are worse than the log's set (below): weigh them first.")]
+    for a, items in worse.items():
+        lines.append(f"{a}: worse than the log's set: {'; '.join(items)}.")
+    lines.append("First flight: hover with a switch back to the log's parameters at hand, then small steps per axis.")
+    return lines, worse
+
+
+def _pilot(ident, tune, val) -> list:
+    out = ["## Before you fly", ""]
+    v_lines, _ = verdict(tune, val)
+    out += [f"**Verdict.** {v_lines[0]}", ""] + [f"- {x}" for x in v_lines[1:]] + [""]
+    if "skipped" in tune or "skipped" in val:
+        return out
+    out += ["Per axis, the log's parameters (`log`) against the tuned set (`tuned`), on the calibrated twin's "
+            f"linearisation: a {math.degrees(val['rate_step_rad_s']):.0f} deg/s rate step (acro), a "
+            f"{math.degrees(val['angle_step_rad']):.0f} deg angle step, the angle's peak after a unit input-disturbance "
+            "step (normalised torque); margins at the plant input and the gyro-noise gain on the identified plant; "
+            "motor-command noise: high-frequency power of the axis command in the twin's hover in turbulence.", "",
+            "| axis | set | rate rise / overshoot | angle rise / overshoot / settle | disturbance peak | "
+            "disk margin (GM, PM) | noise gain | hover command HF power |",
+            "|---|---|---|---|---|---|---|---|"]
+    for axis in tune["axes"]:
+        for name in ("log", "tuned"):
+            lin = val["linear"][axis][name]
+            an = tune["analysis"][name][axis]
+            r, a = lin["rate"], lin["attitude"]
+            rate = (f"{_ms(r['rise_time_s'])} / {_f(r['overshoot_pct'], '.1f', ' %')}" if r.get("stable")
+                    else "unstable")
+            ang = (f"{_ms(a['rise_time_s'])} / {_f(a['overshoot_pct'], '.1f', ' %')} / {_ms(a['settling_time_s'])}"
+                   if a.get("stable") else "unstable")
+            dist = _deg(lin["disturbance"].get("peak_rad"))
+            marg = (f"{an['disk_alpha']:.3f} ({an['gm_db']:.1f} dB, {an['pm_deg']:.0f} deg)" if an["stable"]
+                    else "unstable")
+            out.append(f"| {axis} | {name} | {rate} | {ang} | {dist} | {marg} | {_f(an['noise_gain'])} | "
+                       f"{_f(_hover_noise(val, axis, name))} |")
+    out += ["", f"Parameter file: `{tune['params_file']}` (only the tuned gains; load it over the flown set).", ""]
+    return out
+
+
+def _evidence(ident, cal, tune, val) -> list:
+    out = ["## Evidence", "", "### The log", "",
+           f"`{ident['log']}`: {ident['log_autopilot']} {ident['version']} ({ident['format']}), airborne "
+           f"{ident['airborne_s']:.1f} s ({ident['airborne_source']}); tuned structure: {ident['autopilot']} at "
+           f"{ident['loop_hz']:g} Hz. Parameters the log lacks, taken at the autopilot's defaults: "
+           f"{', '.join(ident['log_params_defaulted']) or 'none'}.", "",
+           "### Identification (free-run VAF on the held-out end of the flight)", "",
+           "| axis | model | method | VAF held out |", "|---|---|---|---|"]
+    for axis, kinds in ident["axes"].items():
+        for kind, m in kinds.items():
+            if kind != "main":
+                out.append(f"| {axis} | {kind} | {m['method']} | {_f(m['vaf_holdout_pct'], '.1f', ' %')} |")
+    out += ["", "### The calibrated twin predicts the held-out flight", ""]
+    if "skipped" in cal:
+        out += [f"Not calibrated: {cal['skipped']}.", ""]
+    else:
+        out += ["The calibrated twin (linearised, gimbal scene) closed with the log's own rate controller, driven by the "
+                "logged rate set-point, against the closed-loop model fitted to the same data (rate set-point -> rate):",
+                "", "| axis | twin VAF | closed-loop fit VAF | plant through the controller VAF |", "|---|---|---|---|"]
+        for axis, p in cal["prediction"].items():
+            out.append(f"| {axis} | {_f(p['twin_vaf_pct'], '.1f', ' %')} | {_f(p['closed_loop_vaf_pct'], '.1f', ' %')} "
+                       f"({p['closed_loop_method']}) | {_f(p['plant_indirect_vaf_pct'], '.1f', ' %')} |")
+        out += ["", "### Calibration", "",
+                f"Started from `{cal['start_vehicle']}`; inertia {', '.join(f'{x:.4g}' for x in cal['inertia_kgm2'])} "
+                f"kg m^2, motor lag {', '.join(sorted({f'{x * 1e3:.1f}' for x in cal['lag_s']}))} ms, delay "
+                f"{', '.join(sorted({f'{x * 1e3:.0f}' for x in cal['delay_s']}))} ms. Residual twin / model over "
+                "1-30 rad/s:", "", "| axis | max dB | max deg | at the start |", "|---|---|---|---|"]
+        for axis, r in cal["residual"].items():
+            s = cal["residual_start"][axis]
+            out.append(f"| {axis} | {r['max_db']:.2f} | {r['max_deg']:.1f} | {s['max_db']:.2f} dB, {s['max_deg']:.1f} deg |")
+        out += [""] + [f"- {x}" for x in cal["at_bounds"]] + [""]
+    if "skipped" not in tune:
+        out += ["### Tuning goals (value <= 1 meets a goal)", ""]
+        for axis, r in tune["results"].items():
+            out.append(f"- {axis}: " + "; ".join(f"{g['goal']} {g['value']:.3f} ({'hard' if g['hard'] else 'soft'})"
+                                                  for g in r["goals"]))
+        for a, why in (tune.get("px4_autotune_rejected") or {}).items():
+            out.append(f"- PX4 autotune baseline, {a}: {why}")
+        out.append("")
+    if val.get("twin"):
+        out += ["### The twin (MuJoCo, the autopilot's laws flown, common random numbers)", "",
+                "| scenario | set | metric | value |", "|---|---|---|---|"]
+        for key, sets in val["twin"].items():
+            for name, m in sets.items():
+                for k, x in _flat(m):
+                    out.append(f"| {key} | {name} | {k} | {_f(x) if isinstance(x, float) else x} |")
+        out.append("")
+    for k, why in (val.get("skipped") or {}).items():
+        out.append(f"- {k}: {why}")
+    notes = ident.get("notes", []) + cal.get("notes", []) + ident.get("mapped", [])
+    if notes:
+        out += ["", "### Notes", ""] + [f"- {n}" for n in notes]
+    return out
+
+
+def _flat(m, prefix=""):
+    for k, x in m.items():
+        if isinstance(x, dict):
+            yield from _flat(x, f"{prefix}{k}.")
+        elif isinstance(x, (int, float, str)) and not isinstance(x, bool) and k not in ("hf_cut_hz",):
+            yield f"{prefix}{k}", float(x) if isinstance(x, int) else x
+
+
+def run(ctx: StageContext) -> dict:
+    ident, cal = ctx.run.result("identify"), ctx.run.result("calibrate")
+    tune, val = ctx.run.result("tune"), ctx.run.result("validate")
+    lines, worse = verdict(tune, val)
+    text = ["# rotorlab pipeline --log: from a flight log to validated parameters", ""]
+    text += _pilot(ident, tune, val) + _evidence(ident, cal, tune, val)
+    atomic.write_text(ctx.work / "report.md", "\n".join(text) + "\n")
+    files = ["report.md", "summary.json"]
+    if "params_file" in tune:
+        shutil.copyfile(ctx.run.stage_dir("tune") / tune["params_file"], ctx.work / tune["params_file"])
+        files.append(tune["params_file"])
+    if "skipped" not in cal:
+        shutil.copyfile(ctx.run.stage_dir("calibrate") / cal["vehicle"], ctx.work / "vehicle.toml")
+        files.append("vehicle.toml")
+    summary = jsonable({"verdict": lines, "worse": worse, "identify": ident, "calibrate": cal, "tune": tune,
+                        "validate": val, "files": files})
+    atomic.write_json(ctx.work / "summary.json", summary)
+    return {"verdict": lines, "files": files}
+
+
+STAGE = Stage("report", upstream=("identify", "calibrate", "tune", "validate"), settings=(), run=run)
