@@ -48,7 +48,7 @@ LEVELS = tuple(_LEVELS)
 _LOG_LEVELS = {
     "full": dict(holdout=0.4, tune_starts=4, tune_max_iter=30, validation_s={"gust": 8.0, "hover": 30.0}),
     "quick": dict(holdout=0.4, tune_starts=2, tune_max_iter=30, validation_s={"gust": 6.0, "hover": 12.0}),
-    "tiny": dict(holdout=0.4, tune_starts=1, tune_max_iter=8, validation_s={"gust": 3.5, "hover": 3.0}),
+    "tiny": dict(holdout=0.4, tune_starts=1, tune_max_iter=8, validation_s={"gust": 3.5, "hover": 5.0}),
 }
 LOG_LEVELS = tuple(_LOG_LEVELS)
 

@@ -34,15 +34,26 @@ from rotorlab.ident.greybox import _closed_loop, lift_interpolated
 from rotorlab.ident.model import IdentifiedModel
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
 from rotorlab.pipeline.stages.log_identify import plant_of
+from rotorlab.scenes import PHYSICS_DT_S
 from rotorlab.sim.control.autopilot import TORQUE_TO_PCT
 from rotorlab.sim.linearize import linearize
 from rotorlab.vehicles import load_vehicle, vehicle_path
-from rotorlab.vehicles.fit_axes import AXES, INERTIA_INDEX, calibrate_axes, twin_response, twin_scene, write_calibrated
+from rotorlab.vehicles.fit_axes import (
+    AXES,
+    DELAY_RANGE_S,
+    INERTIA_INDEX,
+    LAG_RANGE_S,
+    calibrate_axes,
+    twin_response,
+    twin_scene,
+    write_calibrated,
+)
 
 __all__ = ["STAGE", "DEFAULT_VEHICLE", "twin_plant", "target_model", "twin_holdout_vaf"]
 
 DEFAULT_VEHICLE = "x500"
-W_START_RAD_S = 5.0  # where the starting twin's gain is compared with the log's: inside the fit band 1-30 rad/s
+W_START_RAD_S = 1.0  # where the starting twin's gain is compared with the log's: the fit band's lower end, where the
+# rate response is the integrator b / s alone (motor pole and delay do not count yet)
 MAX_START_RATIO = 2.0  # well inside the fit's inertia range (a factor of 3 either way)
 # the twin's per-axis linearisation carries every state of the airframe; the other axes' modes, neither driven nor
 # seen, cancel to this tolerance (python-control's default keeps them in a yaw model: 12 states instead of 4)
@@ -94,13 +105,22 @@ def run(ctx: StageContext) -> dict:
         if a is None:
             notes.append(f"{axis}: not identified in the log; the twin keeps its inertia")
             continue
-        target = target_model(models / f"{axis}.json")
-        if target is None:
-            notes.append(f"{axis}: only the closed loop was identified (no plant): the twin keeps its inertia")
+        if a["use"] is None:  # the identify stage's notes say why
             continue
-        targets[axis] = target
+        targets[axis] = target_model(models / f"{axis}-{a['use']}.json")
     if not targets:
         return {"skipped": "no axis has a plant model to calibrate to", "notes": notes, "start_vehicle": str(source)}
+    # the motor pole and delay start where the plants through the controller put them (the fit walks along the
+    # lag-delay valley from a far start and can end at a bound: the S250 log went to 2 ms and 73 ms from x500's)
+    grey = [ident["axes"][a]["plant-indirect"]["params"] for a in targets
+            if "params" in (ident["axes"][a].get("plant-indirect") or {})]
+    if grey:
+        lag = float(np.clip(np.mean([g["tau_s"] for g in grey]), *LAG_RANGE_S))
+        # in whole physics steps: MuJoCo realises the delay with its actuator history
+        delay = round(float(np.clip(np.mean([g["delay_s"] for g in grey]), *DELAY_RANGE_S)) / PHYSICS_DT_S) * PHYSICS_DT_S
+        v0 = dataclasses.replace(v0, rotor=dataclasses.replace(v0.rotor, lag_s=(lag,) * len(v0.rotor.lag_s),
+                                                                  delay_s=(delay,) * len(v0.rotor.delay_s)))
+        notes.append(f"fit started at the identified motor lag {lag * 1e3:.1f} ms and delay {delay * 1e3:.1f} ms")
     # the starting gain, axis by axis: far outside the fit's range, the inertia is moved to the log's first
     w0 = np.array([W_START_RAD_S])
     start = twin_response(v0, list(targets), w0)
@@ -112,7 +132,7 @@ def run(ctx: StageContext) -> dict:
             inertia[INERTIA_INDEX[axis]] *= ratio
             prescaled[axis] = ratio
     if prescaled:
-        inertia = _physical(inertia)
+        inertia = _physical(inertia, {INERTIA_INDEX[a] for a in targets})
         v0 = dataclasses.replace(v0, inertia_kgm2=tuple(inertia))
         notes.append("starting inertia scaled to the log's torque gain first ("
                      + ", ".join(f"{a} x{r:.3g}" for a, r in prescaled.items())
@@ -140,14 +160,24 @@ def run(ctx: StageContext) -> dict:
         "at_bounds": list(cal.at_bounds), "prescaled": prescaled, "prediction": prediction, "notes": notes})
 
 
-def _physical(inertia) -> list:
-    """Principal moments raised where needed so each is at most the sum of the other two (a rigid body's rule)."""
+def _physical(inertia, fixed) -> list:
+    """Principal moments made to obey a rigid body's rule (each at most the sum of the other two), changing the
+    moments of the axes not in ``fixed`` (indices: those the log determined) where it can: a free moment above
+    the sum is capped at it; below, the free moments are raised in proportion (all of them when every axis is
+    fixed)."""
     i = [float(x) for x in inertia]
     for c in range(3):
         rest = sum(i) - i[c]
-        if i[c] > rest:  # lift the two others in proportion: the scaled axis is the one the log determined
-            f = i[c] / rest * (1.0 + 1e-6)
-            i = [x * f if k != c else x for k, x in enumerate(i)]
+        if i[c] <= rest:
+            continue
+        if c not in fixed:
+            i[c] = rest * (1.0 - 1e-6)
+            continue
+        free = [k for k in range(3) if k != c and k not in fixed] or [k for k in range(3) if k != c]
+        need = i[c] * (1.0 + 1e-6) - rest  # added to the free moments, in proportion to them
+        total = sum(i[k] for k in free)
+        for k in free:
+            i[k] += need * i[k] / total
     return i
 
 

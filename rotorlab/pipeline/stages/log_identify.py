@@ -13,7 +13,31 @@ from rotorlab.ident.flightlogs.run import controller_params, identify_flight_log
 from rotorlab.ident.modelio import load_model
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
 
-__all__ = ["STAGE", "plant_of"]
+__all__ = ["STAGE", "plant_of", "usable_plant", "MIN_PLANT_VAF_PCT"]
+
+#: a plant model is calibrated to and tuned on only where it predicts the held-out flight: at least this VAF (%)
+#: and at least half the closed-loop model's (what the set-point -> rate data allows at all). The plant through
+#: the controller is scored closed again with it (set-point -> rate, comparable with the closed-loop model), the
+#: direct plant open loop. An axis without one keeps its inertia in the twin and the log's gains.
+MIN_PLANT_VAF_PCT = 30.0
+
+
+def usable_plant(axis_models: dict) -> tuple[str | None, str]:
+    """The plant model of an axis to calibrate to and tune on (``"plant-indirect"``, ``"plant"`` or None) and,
+    when none, why (:data:`MIN_PLANT_VAF_PCT`)."""
+    cl = axis_models["closed-loop"]["vaf_holdout_pct"]
+    floor = max(MIN_PLANT_VAF_PCT, 0.5 * cl)
+    tried = []
+    for kind in ("plant-indirect", "plant"):
+        m = axis_models.get(kind)
+        if m is None:
+            continue
+        if m["vaf_holdout_pct"] >= floor:
+            return kind, ""
+        tried.append(f"{kind} {m['vaf_holdout_pct']:.1f} %")
+    return None, (f"no plant model predicts the held-out flight well enough to tune on ({', '.join(tried) or 'none'}"
+                  f"; needed {floor:.1f} %: at least {MIN_PLANT_VAF_PCT:g} % and half the closed loop's "
+                  f"{cl:.1f} %): the twin keeps its inertia and the axis its log gains")
 
 
 def plant_of(path) -> tuple | None:
@@ -42,7 +66,7 @@ def run(ctx: StageContext) -> dict:
     # the log's parameters completed by the autopilot's defaults (a log of another autopilot: its defaults alone)
     given = {k: float(v) for k, v in params.items() if k in ap.TABLE} if autopilot == log.autopilot else {}
     current = ap.TABLE.complete(given, fill_defaults=True, source=str(opts.log))
-    axes = {}
+    axes, notes = {}, []
     for axis, models in res.models.items():
         axes[axis] = {kind: {"vaf_holdout_pct": m.vaf_holdout, "method": m.model.method, "dt_s": m.dt,
                              "input": m.input, "output": m.output,
@@ -50,13 +74,15 @@ def run(ctx: StageContext) -> dict:
                              "ident": [[w.start_s, w.stop_s] for w in m.split.ident],
                              **({"params": m.extra["params"]} if "params" in m.extra else {})}
                       for kind, m in models.items()}
-        axes[axis]["main"] = next(k for k in ("plant-indirect", "plant", "closed-loop") if k in models)
+        axes[axis]["use"], why = usable_plant(axes[axis])
+        if why:
+            notes.append(f"{axis}: {why}")
     return jsonable({"log": str(log.path), "format": log.format, "log_autopilot": log.autopilot,
                      "version": log.version, "autopilot": autopilot, "loop_hz": ap.loop_hz(current),
                      "airborne_s": log.airborne_time_s(), "airborne_source": log.airborne_source,
                      "axes": axes, "log_params": current,
                      "log_params_defaulted": sorted(k for k in current if k not in given),
-                     "mapped": [m.text() for m in mapped], "notes": list(log.notes) + list(res.notes)})
+                     "mapped": [m.text() for m in mapped], "notes": list(log.notes) + list(res.notes) + notes})
 
 
 STAGE = Stage("identify", upstream=(), settings=("holdout",), run=run)

@@ -128,8 +128,9 @@ def _evidence(ident, cal, tune, val) -> list:
            "| axis | model | method | VAF held out |", "|---|---|---|---|"]
     for axis, kinds in ident["axes"].items():
         for kind, m in kinds.items():
-            if kind != "main":
-                out.append(f"| {axis} | {kind} | {m['method']} | {_f(m['vaf_holdout_pct'], '.1f', ' %')} |")
+            if isinstance(m, dict):  # "use" names the plant the later stages took
+                used = " (used)" if kinds.get("use") == kind else ""
+                out.append(f"| {axis} | {kind}{used} | {m['method']} | {_f(m['vaf_holdout_pct'], '.1f', ' %')} |")
     out += ["", "### The calibrated twin predicts the held-out flight", ""]
     if "skipped" in cal:
         out += [f"Not calibrated: {cal['skipped']}.", ""]
@@ -159,26 +160,36 @@ def _evidence(ident, cal, tune, val) -> list:
         out.append("")
     if val.get("twin"):
         out += ["### The twin (MuJoCo, the autopilot's laws flown, common random numbers)", "",
-                "| scenario | set | metric | value |", "|---|---|---|---|"]
+                "| scenario | metric | log | tuned |", "|---|---|---|---|"]
         for key, sets in val["twin"].items():
+            rows = {}
             for name, m in sets.items():
                 for k, x in _flat(m):
-                    out.append(f"| {key} | {name} | {k} | {_f(x) if isinstance(x, float) else x} |")
+                    rows.setdefault(k, {})[name] = x
+            for k, by in rows.items():
+                out.append(f"| {key} | {k} | " + " | ".join(_f(by.get(n)) if not isinstance(by.get(n), str)
+                                                           else by[n] for n in ("log", "tuned")) + " |")
         out.append("")
-    for k, why in (val.get("skipped") or {}).items():
+    for k, why in (val.get("twin_skipped") or {}).items():
         out.append(f"- {k}: {why}")
-    notes = ident.get("notes", []) + cal.get("notes", []) + ident.get("mapped", [])
+    notes = ident.get("notes", []) + cal.get("notes", [])  # the identify notes name the mapped parameters
     if notes:
         out += ["", "### Notes", ""] + [f"- {n}" for n in notes]
     return out
+
+
+#: the twin scenarios' figures the report shows (the rest are in summary.json)
+TWIN_FIGURES = ("peak_deviation", "iae", "recovery_time_s", "rms_error_deg", "rms", "peak", "hf_power",
+                "time_saturated_pct", "position_error_rms_m", "stopped")
 
 
 def _flat(m, prefix=""):
     for k, x in m.items():
         if isinstance(x, dict):
             yield from _flat(x, f"{prefix}{k}.")
-        elif isinstance(x, (int, float, str)) and not isinstance(x, bool) and k not in ("hf_cut_hz",):
-            yield f"{prefix}{k}", float(x) if isinstance(x, int) else x
+        elif k in TWIN_FIGURES and (x is None or isinstance(x, (int, float, str))) and not isinstance(x, bool):
+            if k != "stopped" or x:
+                yield f"{prefix}{k}", float(x) if isinstance(x, int) else x
 
 
 def run(ctx: StageContext) -> dict:

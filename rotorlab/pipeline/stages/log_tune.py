@@ -24,14 +24,15 @@ from rotorlab.tune.spec import parse_spec
 __all__ = ["STAGE", "tune_task", "load_plants"]
 
 
-def load_plants(models_dir, axes, dt_s: float) -> dict:
+def load_plants(models_dir, use: dict, dt_s: float) -> dict:
     """axis -> ``(Gp, G, delay_s)``: the loop plant at ``dt_s`` (:func:`rotorlab.tune.autopilot.axis_plant`), the
-    identified plant (normalised torque -> rad/s) and its delay, for every axis of ``axes`` with a plant model."""
+    identified plant (normalised torque -> rad/s) and its delay, for every axis of ``use`` (axis -> the plant
+    model's kind, None: no usable plant, left out)."""
     out = {}
-    for axis in axes:
-        plant = plant_of(models_dir / f"{axis}.json")
-        if plant is not None:  # None: the closed loop only, no plant to tune on
-            out[axis] = (T.axis_plant(plant[0], plant[1], dt_s), plant[0], plant[1])
+    for axis, kind in use.items():
+        if kind is not None:
+            G, delay_s = plant_of(models_dir / f"{axis}-{kind}.json")
+            out[axis] = (T.axis_plant(G, delay_s, dt_s), G, delay_s)
     return out
 
 
@@ -56,7 +57,8 @@ def run(ctx: StageContext) -> dict:
     ap = autopilots.get(ident["autopilot"])
     current = dict(ident["log_params"])
     dt_s = 1.0 / ap.loop_hz(current)
-    plants = load_plants(ctx.run.stage_dir("identify") / "models", list(ident["axes"]), dt_s)
+    plants = load_plants(ctx.run.stage_dir("identify") / "models", {a: m["use"] for a, m in ident["axes"].items()},
+                         dt_s)
     if not plants:
         return {"skipped": "no axis has a plant model to tune on", "autopilot": ap.NAME}
     baselines = {"log": current, "defaults": ap.TABLE.defaults()}

@@ -45,12 +45,15 @@ ANGLE_STEP_RAD = math.radians(5.0)
 HORIZON_S = 2.0
 
 
-def _axis_plant(v, axis: str, dt_s: float):
-    """The twin's ``u -> [rate, angle]`` of ``axis`` at the loop period (normalised torque in, rad/s and rad out)."""
+def _axis_plants(v, axis: str, dt_s: float) -> dict:
+    """The twin's plants of ``axis`` at the loop period, normalised torque in: ``"rate"`` (rad/s) and
+    ``"attitude"`` (``[rate, angle]``, rad/s and rad), each with the rotors' transport delay."""
     Gd = linearize(twin_scene(v, "gimbal"), v, axis, f"gyro_{axis}", delay=False)
     # the other axes' states are neither driven nor seen: their integrators would read as closed-loop poles at 1
-    Gc = ct.minreal(lti.d2c_zoh(Gd), tol=MINREAL_TOL, verbose=False)
-    return T.axis_plant(Gc * _SCALE, float(np.mean(v.rotor.delay_s)), dt_s)
+    Gc = ct.minreal(lti.d2c_zoh(Gd), tol=MINREAL_TOL, verbose=False) * _SCALE
+    delay_s = float(np.mean(v.rotor.delay_s))
+    # the rate loop on the rate alone: the angle is an open integrator there, not a closed-loop pole
+    return {"rate": lti.c2d_zoh_delay(Gc, dt_s, delay_s), "attitude": T.axis_plant(Gc, delay_s, dt_s)}
 
 
 def _step(T_cl, size: float, dt_s: float) -> dict:
@@ -65,13 +68,12 @@ def _step(T_cl, size: float, dt_s: float) -> dict:
     return t, y
 
 
-def linear_axis(autopilot: str, params: dict, axis: str, Gp) -> dict:
-    """Rate step, angle step and input-disturbance step of one axis on ``Gp`` (``u -> [rate, angle]``), with the
+def linear_axis(autopilot: str, params: dict, axis: str, plants: dict) -> dict:
+    """Rate step, angle step and input-disturbance step of one axis on ``plants`` (:func:`_axis_plants`), with the
     command's peak per unit of step."""
+    Gp = plants["attitude"]
     dt = float(Gp.dt)
     out = {}
-    # the rate loop on the rate output alone: the angle is an open integrator there, not a closed-loop pole
-    plants = {"rate": ct.minreal(Gp[0, 0], verbose=False), "attitude": Gp}
     for loop, size in (("rate", RATE_STEP_RAD_S), ("attitude", ANGLE_STEP_RAD)):
         Tcl = autopilots.closed_loop_lti(autopilot, params, axis, plants[loop], loop=loop)
         if not lti.is_stable(Tcl):
@@ -80,9 +82,12 @@ def linear_axis(autopilot: str, params: dict, axis: str, Gp) -> dict:
         t, y = _step(Tcl, size, dt)
         m = step_metrics(t, y[:, 0 if loop == "rate" else 1], size)
         out[loop] = {"stable": True, "step": size, **m, "command_peak": float(np.max(np.abs(y[:, -1])))}
+    if not out["attitude"]["stable"]:  # the disturbance acts on the same closed loop
+        out["disturbance"] = {"stable": False}
+        return out
     d = T.disturbance_response(autopilot, params, axis, Gp, HORIZON_S)
-    out["disturbance"] = {"peak_rad": float(np.max(np.abs(d))), "iae_rad_s": float(np.sum(np.abs(d)) * dt),
-                          "final_rad": float(d[-1])} if np.all(np.isfinite(d)) else {"stable": False}
+    out["disturbance"] = {"stable": True, "peak_rad": float(np.max(np.abs(d))),
+                          "iae_rad_s": float(np.sum(np.abs(d)) * dt), "final_rad": float(d[-1])}
     return out
 
 
@@ -112,8 +117,8 @@ def run(ctx: StageContext) -> dict:
     dt = 1.0 / float(tune["loop_hz"])
     linear = {}
     for axis in tune["axes"]:
-        Gp = _axis_plant(v, axis, dt)
-        linear[axis] = {name: linear_axis(ap, p, axis, Gp) for name, p in sets.items()}
+        plants = _axis_plants(v, axis, dt)
+        linear[axis] = {name: linear_axis(ap, p, axis, plants) for name, p in sets.items()}
     seeds = task_seeds(ctx.seed + 1, len(TWIN_SCENARIOS))
     dur = ctx.settings["validation_s"]
     tasks = [{"key": key, "set": name, "autopilot": ap, "params": p, "vehicle": vehicle, "seed": seed,
@@ -130,7 +135,7 @@ def run(ctx: StageContext) -> dict:
         write_log(ctx.work / "logs" / f"{t['key']}__{t['set']}.parquet", r["columns"], r["units"],
                   {"scenario": TWIN_SCENARIOS[t["key"]][0], "set": t["set"], "seed": t["seed"],
                    "vehicle": "calibrated twin", "autopilot": ap})
-    return jsonable({"linear": linear, "twin": twin, "skipped": skipped, "sets": list(sets),
+    return jsonable({"linear": linear, "twin": twin, "twin_skipped": skipped, "sets": list(sets),
                      "rate_step_rad_s": RATE_STEP_RAD_S, "angle_step_rad": ANGLE_STEP_RAD})
 
 
