@@ -13,12 +13,16 @@ import math
 import shutil
 
 from rotorlab import atomic
+from rotorlab.ident.flightlogs.names import AXES
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
 
 __all__ = ["STAGE", "verdict"]
 
 #: a tuned value this much worse than the log's (relative) counts as worse in the verdict
 WORSE = 0.05
+#: the twin vouches for an axis only where it predicts the held-out flight within this many VAF points of the
+#: closed-loop model fitted to the same data: a twin that explains much less of the flight is not that vehicle
+FIDELITY_VAF_POINTS = 10.0
 
 
 def _f(x, fmt=".3g", unit=""):
@@ -41,8 +45,29 @@ def _hover_noise(val: dict, axis: str, name: str):
     return ((m.get(axis) or {}).get("control") or {}).get("hf_power")
 
 
-def verdict(tune: dict, val: dict) -> tuple[list, dict]:
+def unvouched(cal: dict, axes) -> dict:
+    """Axes of ``axes`` whose calibrated twin predicts the held-out flight more than :data:`FIDELITY_VAF_POINTS`
+    worse than the closed-loop fit: axis -> (twin VAF, fit VAF)."""
+    pred = cal.get("prediction") or {}
+    out = {}
+    for a in axes:
+        p = pred.get(a)
+        if p is None or p["twin_vaf_pct"] < p["closed_loop_vaf_pct"] - FIDELITY_VAF_POINTS:
+            out[a] = (None, None) if p is None else (p["twin_vaf_pct"], p["closed_loop_vaf_pct"])
+    return out
+
+
+def verdict(tune: dict, val: dict, cal: dict | None = None) -> tuple[list, dict]:
     """Plain sentences (the first says whether to fly the tuned set) and, per axis, what got worse."""
+    lines, worse = _verdict(tune, val, cal)
+    left = [a for a in AXES if a not in (tune.get("axes") or [])]
+    if left and "axes" in tune:
+        lines.append(f"{', '.join(left)}: not tuned (no plant model predicts the flight well enough, see the notes): "
+                     "keep the log's gains there; the parameter file leaves them out.")
+    return lines, worse
+
+
+def _verdict(tune: dict, val: dict, cal: dict | None) -> tuple[list, dict]:
     if "skipped" in tune:
         return [f"Nothing was tuned: {tune['skipped']}. Keep the log's parameters."], {}
     if tune.get("failed"):
@@ -76,6 +101,15 @@ def verdict(tune: dict, val: dict) -> tuple[list, dict]:
     unstable = [a for a, it in worse.items() if "unstable" in it]
     if unstable:
         return [f"Do not fly the tuned set: the calibrated twin is unstable with it on {', '.join(unstable)}."], worse
+    weak = unvouched(cal or {}, tune["axes"])
+    if weak:
+        said = "; ".join(f"{a}: twin {t:.1f} % against the fit's {c:.1f} %" if t is not None else f"{a}: not calibrated"
+                         for a, (t, c) in weak.items())
+        lines = [f"Not validated on {', '.join(weak)}: the calibrated twin predicts the held-out flight much worse than "
+                 f"the closed-loop fit ({said}), so its checks do not vouch for the tuned set there. The tuned set "
+                 f"`{tune['params_file']}` meets its hard goals on the identified plants; fly it only with care (hover, "
+                 "the log's parameters at hand to switch back), or fly a log with more excitation first."]
+        return lines + [f"{a}: worse than the log's set on the twin: {'; '.join(it)}." for a, it in worse.items()], worse
     lines = [f"Fly the tuned set `{tune['params_file']}` on {', '.join(tune['axes'])}: its hard goals (crossover band, "
              "disk margin floor, gyro-noise bound) are met on the identified plants"
              + (", and on the calibrated twin nothing got worse than the log's set." if not worse else
@@ -86,16 +120,17 @@ def verdict(tune: dict, val: dict) -> tuple[list, dict]:
     return lines, worse
 
 
-def _pilot(ident, tune, val) -> list:
+def _pilot(ident, cal, tune, val) -> list:
     out = ["## Before you fly", ""]
-    v_lines, _ = verdict(tune, val)
+    v_lines, _ = verdict(tune, val, cal)
     out += [f"**Verdict.** {v_lines[0]}", ""] + [f"- {x}" for x in v_lines[1:]] + [""]
     if "skipped" in tune or "skipped" in val:
         return out
     out += ["Per axis, the log's parameters (`log`) against the tuned set (`tuned`), on the calibrated twin's "
             f"linearisation: a {math.degrees(val['rate_step_rad_s']):.0f} deg/s rate step (acro), a "
-            f"{math.degrees(val['angle_step_rad']):.0f} deg angle step, the angle's peak after a unit input-disturbance "
-            "step (normalised torque); margins at the plant input and the gyro-noise gain on the identified plant; "
+            f"{math.degrees(val['angle_step_rad']):.0f} deg angle step, the angle's peak after an input-disturbance "
+            f"step of {val['dist_step']:g} (normalised torque: {100 * val['dist_step']:g} % of the full command); "
+            "margins at the plant input and the gyro-noise gain on the identified plant; "
             "motor-command noise: high-frequency power of the axis command in the twin's hover in turbulence.", "",
             "| axis | set | rate rise / overshoot | angle rise / overshoot / settle | disturbance peak | "
             "disk margin (GM, PM) | noise gain | hover command HF power |",
@@ -195,9 +230,9 @@ def _flat(m, prefix=""):
 def run(ctx: StageContext) -> dict:
     ident, cal = ctx.run.result("identify"), ctx.run.result("calibrate")
     tune, val = ctx.run.result("tune"), ctx.run.result("validate")
-    lines, worse = verdict(tune, val)
+    lines, worse = verdict(tune, val, cal)
     text = ["# rotorlab pipeline --log: from a flight log to validated parameters", ""]
-    text += _pilot(ident, tune, val) + _evidence(ident, cal, tune, val)
+    text += _pilot(ident, cal, tune, val) + _evidence(ident, cal, tune, val)
     atomic.write_text(ctx.work / "report.md", "\n".join(text) + "\n")
     files = ["report.md", "summary.json"]
     if "params_file" in tune:

@@ -3,8 +3,8 @@
 Per axis on the calibrated twin's exact linearisation (gimbal scene: rotation about the CG; motors and delay in;
 :func:`rotorlab.pipeline.stages.log_calibrate.twin_plant`) closed by the autopilot's law at its loop rate
 (:func:`rotorlab.autopilots.closed_loop_lti`): a rate step (the acro mode), an angle step (attitude mode) and a
-unit input-disturbance step (normalised torque at the plant input, :func:`rotorlab.tune.autopilot.
-disturbance_response`). The step sizes are linear-range (the metrics scale with them; saturation is the
+input-disturbance step of :data:`DIST_STEP` (normalised torque at the plant input,
+:func:`rotorlab.tune.autopilot.disturbance_response`). The step sizes are linear-range (the metrics scale with them; saturation is the
 simulations' part). In the twin itself (MuJoCo, the autopilot's stateful laws flown by the flight software with
 common random numbers, every set seeing the same gusts and turbulence, seeds children of ``seed + 1``): a 1-cosine
 gust from ahead (pitch) and from the side (roll), and hover in Dryden turbulence, whose motor-command
@@ -41,6 +41,7 @@ TWIN_SCENARIOS = {
     "hover": ("hover", {"switch_s": "none"}),
 }
 RATE_STEP_RAD_S = math.radians(30.0)
+DIST_STEP = 0.1  # input-disturbance step, normalised torque: a tenth of the full differential command
 ANGLE_STEP_RAD = math.radians(5.0)
 HORIZON_S = 2.0
 
@@ -85,7 +86,7 @@ def linear_axis(autopilot: str, params: dict, axis: str, plants: dict) -> dict:
     if not out["attitude"]["stable"]:  # the disturbance acts on the same closed loop
         out["disturbance"] = {"stable": False}
         return out
-    d = T.disturbance_response(autopilot, params, axis, Gp, HORIZON_S)
+    d = DIST_STEP * T.disturbance_response(autopilot, params, axis, Gp, HORIZON_S)
     out["disturbance"] = {"stable": True, "peak_rad": float(np.max(np.abs(d))),
                           "iae_rad_s": float(np.sum(np.abs(d)) * dt), "final_rad": float(d[-1])}
     return out
@@ -135,7 +136,7 @@ def run(ctx: StageContext) -> dict:
         write_log(ctx.work / "logs" / f"{t['key']}__{t['set']}.parquet", r["columns"], r["units"],
                   {"scenario": TWIN_SCENARIOS[t["key"]][0], "set": t["set"], "seed": t["seed"],
                    "vehicle": "calibrated twin", "autopilot": ap})
-    return jsonable({"linear": linear, "twin": twin, "twin_skipped": skipped, "sets": list(sets),
+    return jsonable({"linear": linear, "twin": twin, "twin_skipped": skipped, "sets": list(sets), "dist_step": DIST_STEP,
                      "rate_step_rad_s": RATE_STEP_RAD_S, "angle_step_rad": ANGLE_STEP_RAD})
 
 
