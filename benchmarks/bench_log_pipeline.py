@@ -47,7 +47,7 @@ def real_logs() -> list[Path]:
 
 def bench(log: Path, level: str, executor: str, workers: int, tmp: Path) -> None:
     out = tmp / f"run-{log.stem or log.name}"
-    opts = LogPipelineOptions(vehicle=f"log:{log.name}", out=out, level=level, executor=executor, workers=workers,
+    opts = LogPipelineOptions(out=out, level=level, executor=executor, workers=workers,
                               progress=False, log=log)
     print(f"pipeline --log {log} --{level} executor={executor} workers={workers}")
     t0 = time.perf_counter()

@@ -104,18 +104,31 @@ def run_log(args, level: str) -> int:
         raise CLIError(str(exc)) from None
     stem = log.stem if log.suffix else log.name
     out = Path(args.out or f"runs/pipeline-log-{stem}{'' if level == 'full' else '-' + level}-seed{args.seed}")
-    opts = LogPipelineOptions(vehicle=f"log:{log.name}", out=out, level=level, seed=args.seed,
+    opts = LogPipelineOptions(out=out, level=level, seed=args.seed,
                               executor=args.executor, workers=args.workers, progress=not args.no_progress,
                               log=log.resolve(), vehicle_file=vehicle, autopilot=args.autopilot)
     try:
         run_log_pipeline(opts)
         print_verdict(out)
+        _print_parameter_file(out)
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
     except KeyboardInterrupt:
         print(f"\ninterrupted: completed stages are kept in {out}; run the same command again to resume")
         return 130
     return 0
+
+
+def _print_parameter_file(out: Path) -> None:
+    import json
+
+    from rotorlab.pipeline import stage_dir
+
+    summary = stage_dir(out, "report") / "summary.json"
+    if summary.is_file():
+        name = json.loads(summary.read_text(encoding="utf-8")).get("parameter_file")
+        print(f"\nparameter file: {stage_dir(out, 'report') / name}" if name else
+              "\nno parameter file to fly: keep the log's parameters (report.md says why)")
 
 
 def print_verdict(out: Path) -> None:

@@ -280,7 +280,7 @@ def run_log_pipeline(opts: LogPipelineOptions, *, stages=LOG_STAGES, log=print) 
     Examples
     --------
     >>> from rotorlab.pipeline import LogPipelineOptions, run_log_pipeline
-    >>> opts = LogPipelineOptions(vehicle="log:flight.ulg", log="flight.ulg", out="runs/flight", level="quick")
+    >>> opts = LogPipelineOptions(log="flight.ulg", out="runs/flight", level="quick")
     >>> man = run_log_pipeline(opts)  # doctest: +SKIP
     """
     from rotorlab import autopilots

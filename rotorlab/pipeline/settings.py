@@ -76,11 +76,20 @@ class PipelineOptions:
 class LogPipelineOptions(PipelineOptions):
     """What ``rotorlab pipeline --log`` was asked: the flight log, the vehicle TOML to start the twin from (None:
     the shipped x500 twin, PX4's reference vehicle), the autopilot whose structure is tuned (None: the log's).
-    ``vehicle`` is the run's identity in the run folder (``log:<log file name>``)."""
+    ``vehicle`` is set to the run's identity in the run folder, ``log:<log file name>``.
+
+    Examples
+    --------
+    >>> LogPipelineOptions(log=Path("runs/flight.ulg"), level="quick").vehicle
+    'log:flight.ulg'
+    """
 
     log: Path = Path("flight.ulg")
     vehicle_file: str | None = None
     autopilot: str | None = None
+
+    def __post_init__(self):
+        self.vehicle = f"log:{Path(self.log).name}"
 
 
 def log_settings_for(level: str) -> dict:

@@ -24,7 +24,26 @@ MIN_PLANT_VAF_PCT = 30.0
 
 def usable_plant(axis_models: dict) -> tuple[str | None, str]:
     """The plant model of an axis to calibrate to and tune on (``"plant-indirect"``, ``"plant"`` or None) and,
-    when none, why (:data:`MIN_PLANT_VAF_PCT`)."""
+    when none, why (:data:`MIN_PLANT_VAF_PCT`).
+
+    Parameters
+    ----------
+    axis_models : dict
+        Kind -> ``{"vaf_holdout_pct": ...}`` of one axis, with ``"closed-loop"``.
+
+    Returns
+    -------
+    kind : str or None
+    why : str
+        Empty when a plant is usable.
+
+    Examples
+    --------
+    >>> usable_plant({"closed-loop": {"vaf_holdout_pct": 56.2}, "plant-indirect": {"vaf_holdout_pct": 38.5}})
+    ('plant-indirect', '')
+    >>> usable_plant({"closed-loop": {"vaf_holdout_pct": 59.3}, "plant-indirect": {"vaf_holdout_pct": 12.4}})[0] is None
+    True
+    """
     cl = axis_models["closed-loop"]["vaf_holdout_pct"]
     floor = max(MIN_PLANT_VAF_PCT, 0.5 * cl)
     tried = []

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import math
 import shutil
+from pathlib import Path
 
-from rotorlab import atomic
+from rotorlab import atomic, autopilots
 from rotorlab.ident.flightlogs.names import AXES
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
 
@@ -47,7 +48,15 @@ def _hover_noise(val: dict, axis: str, name: str):
 
 def unvouched(cal: dict, axes) -> dict:
     """Axes of ``axes`` whose calibrated twin predicts the held-out flight more than :data:`FIDELITY_VAF_POINTS`
-    worse than the closed-loop fit: axis -> (twin VAF, fit VAF)."""
+    worse than the closed-loop fit (or was not calibrated): axis -> (twin VAF, fit VAF).
+
+    Examples
+    --------
+    >>> pred = {"roll": {"twin_vaf_pct": 98.7, "closed_loop_vaf_pct": 98.8},
+    ...         "pitch": {"twin_vaf_pct": 38.4, "closed_loop_vaf_pct": 56.2}}
+    >>> unvouched({"prediction": pred}, ["roll", "pitch"])
+    {'pitch': (38.4, 56.2)}
+    """
     pred = cal.get("prediction") or {}
     out = {}
     for a in axes:
@@ -57,72 +66,94 @@ def unvouched(cal: dict, axes) -> dict:
     return out
 
 
-def verdict(tune: dict, val: dict, cal: dict | None = None) -> tuple[list, dict]:
-    """Plain sentences (the first says whether to fly the tuned set) and, per axis, what got worse."""
-    lines, worse = _verdict(tune, val, cal)
+def verdict(tune: dict, val: dict, cal: dict | None = None) -> tuple[list, dict, list]:
+    """Plain sentences (the first says what to fly), per axis what got worse, and the axes whose tuned gains are
+    recommended.
+
+    An axis's tuned gains are recommended when they meet the hard goals on the identified plant and, on the
+    calibrated twin, are stable, keep the disk margin and reject an input disturbance at least as well as the log's
+    (within :data:`WORSE`); a higher gyro-noise gain or motor-command noise is listed to weigh, not a refusal. Where
+    the twin does not predict the flight (:func:`unvouched`) the first sentence says the tuned set is not validated.
+    """
+    lines, worse, recommended = _verdict(tune, val, cal)
     left = [a for a in AXES if a not in (tune.get("axes") or [])]
     if left and "axes" in tune:
         lines.append(f"{', '.join(left)}: not tuned (no plant model predicts the flight well enough, see the notes): "
                      "keep the log's gains there; the parameter file leaves them out.")
-    return lines, worse
+    return lines, worse, recommended
 
 
-def _verdict(tune: dict, val: dict, cal: dict | None) -> tuple[list, dict]:
+def recommended_file(tune: dict, recommended: list) -> str:
+    """The parameter file the verdict names: the tune stage's when every tuned axis is recommended, else
+    ``recommended.params`` / ``.parm`` (the report stage writes it with those axes' gains only)."""
+    if recommended == list(tune["axes"]):
+        return tune["params_file"]
+    return "recommended" + Path(tune["params_file"]).suffix
+
+
+def _axis_checks(tune: dict, val: dict, axis: str) -> tuple[list, list]:
+    """(blocking, to weigh): what is worse with the tuned gains than with the log's on ``axis``."""
+    an = tune["analysis"]
+    lin = (val.get("linear") or {}).get(axis) or {}
+    if not an["tuned"][axis]["stable"] or not all(v.get("stable", True) for v in (lin.get("tuned") or {}).values()):
+        return ["unstable on the calibrated twin"], []
+    block, weigh = [], []
+    if an["tuned"][axis]["disk_alpha"] < an["log"][axis]["disk_alpha"] * (1 - WORSE):
+        block.append(f"disk margin {an['log'][axis]['disk_alpha']:.3f} -> {an['tuned'][axis]['disk_alpha']:.3f}")
+    dl, dt = (lin.get(s, {}).get("disturbance", {}).get("peak_rad") for s in ("log", "tuned"))
+    if dl is not None and dt is not None and dt > dl * (1 + WORSE):
+        block.append(f"disturbance peak {math.degrees(dl):.3g} -> {math.degrees(dt):.3g} deg")
+    if an["tuned"][axis]["noise_gain"] > an["log"][axis]["noise_gain"] * (1 + WORSE):
+        weigh.append(f"gyro-noise gain {an['log'][axis]['noise_gain']:.3g} -> {an['tuned'][axis]['noise_gain']:.3g}")
+    hl, ht = _hover_noise(val, axis, "log"), _hover_noise(val, axis, "tuned")
+    if hl and ht and ht > hl * (1 + WORSE):
+        weigh.append(f"motor-command noise in hover {hl:.3g} -> {ht:.3g} %^2")
+    return block, weigh
+
+
+def _verdict(tune: dict, val: dict, cal: dict | None) -> tuple[list, dict, list]:
     if "skipped" in tune:
-        return [f"Nothing was tuned: {tune['skipped']}. Keep the log's parameters."], {}
+        return [f"Nothing was tuned: {tune['skipped']}. Keep the log's parameters."], {}, []
     if tune.get("failed"):
         return [f"Do not fly the tuned set: hard goals not met ({'; '.join(tune['failed'])}); its file "
-                f"`{tune['params_file']}` is marked as failing. Keep the log's parameters."], {}
+                f"`{tune['params_file']}` is marked as failing. Keep the log's parameters."], {}, []
+    if "skipped" in val:
+        return [f"Not validated: {val['skipped']}. Keep the log's parameters."], {}, []
     stopped = [f"{k}: {r['tuned']['stopped']}" for k, r in (val.get("twin") or {}).items()
                if (r.get("tuned") or {}).get("stopped")]
     if stopped:
-        return [f"Do not fly the tuned set: the twin did not complete {'; '.join(stopped)}."], {}
-    worse = {}
-    for axis in tune["axes"]:
-        an = tune["analysis"]
-        lin = (val.get("linear") or {}).get(axis) or {}
-        items = []
-        if not an["tuned"][axis]["stable"] or not all(v.get("stable", True) for v in (lin.get("tuned") or {}).values()):
-            items.append("unstable")
-        else:
-            if an["tuned"][axis]["disk_alpha"] < an["log"][axis]["disk_alpha"] * (1 - WORSE):
-                items.append(f"disk margin {an['log'][axis]['disk_alpha']:.3f} -> {an['tuned'][axis]['disk_alpha']:.3f}")
-            if an["tuned"][axis]["noise_gain"] > an["log"][axis]["noise_gain"] * (1 + WORSE):
-                items.append(f"gyro-noise gain {an['log'][axis]['noise_gain']:.3g} -> "
-                             f"{an['tuned'][axis]['noise_gain']:.3g}")
-            dl, dt = (lin.get(s, {}).get("disturbance", {}).get("peak_rad") for s in ("log", "tuned"))
-            if dl is not None and dt is not None and dt > dl * (1 + WORSE):
-                items.append(f"disturbance peak {math.degrees(dl):.3g} -> {math.degrees(dt):.3g} deg")
-            hl, ht = _hover_noise(val, axis, "log"), _hover_noise(val, axis, "tuned")
-            if hl and ht and ht > hl * (1 + WORSE) * 1.5:
-                items.append(f"motor-command noise in hover {hl:.3g} -> {ht:.3g} %^2")
-        if items:
-            worse[axis] = items
-    unstable = [a for a, it in worse.items() if "unstable" in it]
-    if unstable:
-        return [f"Do not fly the tuned set: the calibrated twin is unstable with it on {', '.join(unstable)}."], worse
-    weak = unvouched(cal or {}, tune["axes"])
+        return [f"Do not fly the tuned set: the twin did not complete {'; '.join(stopped)}."], {}, []
+    checks = {a: _axis_checks(tune, val, a) for a in tune["axes"]}
+    worse = {a: b + w for a, (b, w) in checks.items() if b + w}
+    recommended = [a for a, (b, _) in checks.items() if not b]
+    keep = [f"{a}: keep the log's gains: the tuned ones are worse on the calibrated twin ({'; '.join(b)})."
+            for a, (b, _) in checks.items() if b]
+    weigh = [f"{a}: to weigh, worse than the log's set on the twin: {'; '.join(w)}."
+             for a, (b, w) in checks.items() if w and not b]
+    if not recommended:
+        return ["Keep the log's parameters: the tuned set meets its hard goals on the identified plants but is "
+                "worse than the log's on the calibrated twin on every tuned axis."] + keep, worse, []
+    f = recommended_file(tune, recommended)
+    weak = {a: v for a, v in unvouched(cal or {}, recommended).items()}
     if weak:
         said = "; ".join(f"{a}: twin {t:.1f} % against the fit's {c:.1f} %" if t is not None else f"{a}: not calibrated"
                          for a, (t, c) in weak.items())
-        lines = [f"Not validated on {', '.join(weak)}: the calibrated twin predicts the held-out flight much worse than "
-                 f"the closed-loop fit ({said}), so its checks do not vouch for the tuned set there. The tuned set "
-                 f"`{tune['params_file']}` meets its hard goals on the identified plants; fly it only with care (hover, "
-                 "the log's parameters at hand to switch back), or fly a log with more excitation first."]
-        return lines + [f"{a}: worse than the log's set on the twin: {'; '.join(it)}." for a, it in worse.items()], worse
-    lines = [f"Fly the tuned set `{tune['params_file']}` on {', '.join(tune['axes'])}: its hard goals (crossover band, "
-             "disk margin floor, gyro-noise bound) are met on the identified plants"
-             + (", and on the calibrated twin nothing got worse than the log's set." if not worse else
-                "; on the calibrated twin some figures are worse than the log's set (below): weigh them first.")]
-    for a, items in worse.items():
-        lines.append(f"{a}: worse than the log's set: {'; '.join(items)}.")
-    lines.append("First flight: hover with a switch back to the log's parameters at hand, then small steps per axis.")
-    return lines, worse
+        first = (f"Not validated on {', '.join(weak)}: the calibrated twin predicts the held-out flight much worse than "
+                 f"the closed-loop fit ({said}), so its checks do not vouch for the tuned gains there. `{f}` "
+                 f"({', '.join(recommended)}) meets its hard goals on the identified plants; fly it only with care "
+                 "(hover, the log's parameters at hand to switch back), or fly a log with more excitation first.")
+    else:
+        first = (f"Fly `{f}` ({', '.join(recommended)}): it meets its hard goals (crossover band, disk margin floor, "
+                 "gyro-noise bound) on the identified plants and, on the calibrated twin, keeps the log's margins and "
+                 "rejects an input disturbance at least as well.")
+    return ([first] + keep + weigh
+            + ["First flight: hover with a switch back to the log's parameters at hand, then small steps per axis."],
+            worse, recommended)
 
 
 def _pilot(ident, cal, tune, val) -> list:
     out = ["## Before you fly", ""]
-    v_lines, _ = verdict(tune, val, cal)
+    v_lines, _, recommended = verdict(tune, val, cal)
     out += [f"**Verdict.** {v_lines[0]}", ""] + [f"- {x}" for x in v_lines[1:]] + [""]
     if "skipped" in tune or "skipped" in val:
         return out
@@ -149,7 +180,9 @@ def _pilot(ident, cal, tune, val) -> list:
                     else "unstable")
             out.append(f"| {axis} | {name} | {rate} | {ang} | {dist} | {marg} | {_f(an['noise_gain'])} | "
                        f"{_f(_hover_noise(val, axis, name))} |")
-    out += ["", f"Parameter file: `{tune['params_file']}` (only the tuned gains; load it over the flown set).", ""]
+    if recommended:
+        out += ["", f"Parameter file: `{recommended_file(tune, recommended)}` (only the recommended axes' tuned gains; "
+                "load it over the flown set). Every tuned gain: `" + tune["params_file"] + "`.", ""]
     return out
 
 
@@ -230,7 +263,7 @@ def _flat(m, prefix=""):
 def run(ctx: StageContext) -> dict:
     ident, cal = ctx.run.result("identify"), ctx.run.result("calibrate")
     tune, val = ctx.run.result("tune"), ctx.run.result("validate")
-    lines, worse = verdict(tune, val, cal)
+    lines, worse, recommended = verdict(tune, val, cal)
     text = ["# rotorlab pipeline --log: from a flight log to validated parameters", ""]
     text += _pilot(ident, cal, tune, val) + _evidence(ident, cal, tune, val)
     atomic.write_text(ctx.work / "report.md", "\n".join(text) + "\n")
@@ -238,13 +271,23 @@ def run(ctx: StageContext) -> dict:
     if "params_file" in tune:
         shutil.copyfile(ctx.run.stage_dir("tune") / tune["params_file"], ctx.work / tune["params_file"])
         files.append(tune["params_file"])
+    name = recommended_file(tune, recommended) if recommended else None
+    if name is not None and name != tune["params_file"]:
+        ap = autopilots.get(tune["autopilot"])
+        names = {n for a in recommended for n in ap.axis_names(a).values()}
+        autopilots.write_params(ap.NAME, ctx.work / name, {k: v for k, v in tune["tuned"].items() if k in names},
+                                header=f"rotorlab pipeline --log: the tuned gains of {', '.join(recommended)} only, the "
+                                       f"axes the calibrated twin recommends (report.md); every tuned gain: "
+                                       f"{tune['params_file']}")
+        files.append(name)
     if "skipped" not in cal:
         shutil.copyfile(ctx.run.stage_dir("calibrate") / cal["vehicle"], ctx.work / "vehicle.toml")
         files.append("vehicle.toml")
-    summary = jsonable({"verdict": lines, "worse": worse, "identify": ident, "calibrate": cal, "tune": tune,
+    summary = jsonable({"verdict": lines, "worse": worse, "recommended": recommended, "parameter_file": name,
+                        "identify": ident, "calibrate": cal, "tune": tune,
                         "validate": val, "files": files})
     atomic.write_json(ctx.work / "summary.json", summary)
-    return {"verdict": lines, "files": files}
+    return {"verdict": lines, "recommended": recommended, "parameter_file": name, "files": files}
 
 
 STAGE = Stage("report", upstream=("identify", "calibrate", "tune", "validate"), settings=(), run=run)
