@@ -165,3 +165,37 @@ def test_every_log_stage_module_is_registered():
     order = list(stages.LOG_REGISTRY)
     for i, st in enumerate(stages.LOG_REGISTRY.values()):
         assert all(order.index(u) < i for u in st.upstream)
+
+
+def _case(disk, dist, noise=(1.0, 1.0), stable=True):
+    """Crafted stage results of one axis, roll: (log, tuned) disk margins, disturbance peaks (rad), noise gains."""
+    an = {s: {"roll": {"stable": stable or s == "log", "disk_alpha": d, "noise_gain": n}}
+          for s, d, n in zip(("log", "tuned"), disk, noise)}
+    lin = {"roll": {s: {"rate": {"stable": True}, "attitude": {"stable": True},
+                        "disturbance": {"stable": True, "peak_rad": p}} for s, p in zip(("log", "tuned"), dist)}}
+    tune = {"axes": ["roll"], "analysis": an, "params_file": "tuned.params", "failed": [], "autopilot": "px4"}
+    cal = {"prediction": {"roll": {"twin_vaf_pct": 98.0, "closed_loop_vaf_pct": 98.5}}}
+    return tune, {"linear": lin, "twin": {}}, cal
+
+
+def test_verdict_recommends_an_axis_only_when_it_is_no_worse():
+    from rotorlab.pipeline.stages.log_report import verdict
+
+    # better disturbance rejection, same margin: fly the tuned file
+    lines, worse, rec = verdict(*_case(disk=(0.8, 0.8), dist=(0.1, 0.05)))
+    assert rec == ["roll"] and lines[0].startswith("Fly `tuned.params` (roll)") and not worse
+    # disturbance peak 10 % worse (beyond the 5 % allowance): keep the log's gains
+    lines, worse, rec = verdict(*_case(disk=(0.8, 0.8), dist=(0.1, 0.11)))
+    assert rec == [] and lines[0].startswith("Keep the log's parameters") and "disturbance peak" in worse["roll"][0]
+    # a lower disk margin refuses too; more gyro noise is only to weigh
+    assert verdict(*_case(disk=(0.8, 0.7), dist=(0.1, 0.05)))[2] == []
+    lines, worse, rec = verdict(*_case(disk=(0.8, 0.8), dist=(0.1, 0.05), noise=(1.0, 2.0)))
+    assert rec == ["roll"] and any("to weigh" in x and "gyro-noise gain 1 -> 2" in x for x in lines)
+    # unstable with the tuned gains on the identified plant's analysis: not recommended
+    assert verdict(*_case(disk=(0.8, 0.8), dist=(0.1, 0.05), stable=False))[2] == []
+    # a twin that predicts the flight far worse than the closed-loop fit does not vouch
+    tune, val, cal = _case(disk=(0.8, 0.8), dist=(0.1, 0.05))
+    cal["prediction"]["roll"]["twin_vaf_pct"] = 40.0
+    assert verdict(tune, val, cal)[0][0].startswith("Not validated on roll")
+    # pitch and yaw were not tuned: the verdict says to keep their log gains
+    assert any(x.startswith("pitch, yaw: not tuned") for x in verdict(tune, val, cal)[0])

@@ -155,6 +155,9 @@ def _pilot(ident, cal, tune, val) -> list:
     out = ["## Before you fly", ""]
     v_lines, _, recommended = verdict(tune, val, cal)
     out += [f"**Verdict.** {v_lines[0]}", ""] + [f"- {x}" for x in v_lines[1:]] + [""]
+    if ident["autopilot"] != ident["log_autopilot"]:
+        out += [f"The log flew {ident['log_autopilot']}; the {ident['autopilot']} structure was tuned, so the `log` set "
+                f"below is {ident['autopilot']}'s defaults.", ""]
     if "skipped" in tune or "skipped" in val:
         return out
     out += ["Per axis, the log's parameters (`log`) against the tuned set (`tuned`), on the calibrated twin's "
