@@ -46,6 +46,34 @@ def _hover_noise(val: dict, axis: str, name: str):
     return ((m.get(axis) or {}).get("control") or {}).get("hf_power")
 
 
+def twin_headlines(val: dict) -> dict:
+    """The twin scenarios' headline figures per set: ``{(scenario, axis, figure): {set: value}}``: a gust's peak
+    attitude deviation and IAE (deg, deg s) on the axis it disturbs, hover's RMS attitude error (deg) per axis;
+    smaller is better in each.
+
+    Examples
+    --------
+    >>> val = {"twin": {"gust-roll": {"log": {"roll": {"disturbance": {"peak_deviation": -8.0, "iae": 6.0}}},
+    ...                               "tuned": {"roll": {"disturbance": {"peak_deviation": 5.0, "iae": 4.0}}}}}}
+    >>> twin_headlines(val)[("gust-roll", "roll", "peak deviation (deg)")]
+    {'log': 8.0, 'tuned': 5.0}
+    """
+    out = {}
+    for key, sets in (val.get("twin") or {}).items():
+        for name, m in sets.items():
+            if key == "hover":
+                for axis, a in ((m.get("all") or {}).items()):
+                    if isinstance(a, dict) and "rms_error_deg" in a:
+                        out.setdefault((key, axis, "RMS error (deg)"), {})[name] = float(a["rms_error_deg"])
+                continue
+            for axis, a in m.items():
+                d = a.get("disturbance") if isinstance(a, dict) else None
+                if d:
+                    out.setdefault((key, axis, "peak deviation (deg)"), {})[name] = abs(float(d["peak_deviation"]))
+                    out.setdefault((key, axis, "IAE (deg s)"), {})[name] = float(d["iae"])
+    return out
+
+
 def unvouched(cal: dict, axes) -> dict:
     """Axes of ``axes`` whose calibrated twin predicts the held-out flight more than :data:`FIDELITY_VAF_POINTS`
     worse than the closed-loop fit (or was not calibrated): axis -> (twin VAF, fit VAF).
@@ -108,6 +136,9 @@ def _axis_checks(tune: dict, val: dict, axis: str) -> tuple[list, list]:
     hl, ht = _hover_noise(val, axis, "log"), _hover_noise(val, axis, "tuned")
     if hl and ht and ht > hl * (1 + WORSE):
         weigh.append(f"motor-command noise in hover {hl:.3g} -> {ht:.3g} %^2")
+    for (key, ax, fig), by in twin_headlines(val).items():
+        if ax == axis and {"log", "tuned"} <= set(by) and by["tuned"] > by["log"] * (1 + WORSE):
+            weigh.append(f"{key} {fig} {by['log']:.3g} -> {by['tuned']:.3g}")
     return block, weigh
 
 
@@ -183,6 +214,13 @@ def _pilot(ident, cal, tune, val) -> list:
                     else "unstable")
             out.append(f"| {axis} | {name} | {rate} | {ang} | {dist} | {marg} | {_f(an['noise_gain'])} | "
                        f"{_f(_hover_noise(val, axis, name))} |")
+    heads = twin_headlines(val)
+    if heads:
+        out += ["", "In the twin itself (MuJoCo, nonlinear, the autopilot's laws flown; the same gusts and turbulence "
+                "for both sets; smaller is better):", "", "| scenario | axis | figure | log | tuned |",
+                "|---|---|---|---|---|"]
+        out += [f"| {key} | {axis} | {fig} | {_f(by.get('log'))} | {_f(by.get('tuned'))} |"
+                for (key, axis, fig), by in heads.items()]
     if recommended:
         out += ["", f"Parameter file: `{recommended_file(tune, recommended)}` (only the recommended axes' tuned gains; "
                 "load it over the flown set). Every tuned gain: `" + tune["params_file"] + "`.", ""]
