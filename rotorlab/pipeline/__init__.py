@@ -1,5 +1,6 @@
 """The end-to-end twin experiment: identification campaign -> identification -> bootstrap -> tuning ->
-re-injection of the gains into the validation scenarios -> report (rotorlab issue 6).
+re-injection of the gains into the validation scenarios -> report (rotorlab issue 6); and the same machinery entered
+from a flight log (:func:`run_log_pipeline`: identify -> calibrate -> tune -> validate -> report, issue 29).
 
 Modules: :mod:`~rotorlab.pipeline.settings` (options, levels), :mod:`~rotorlab.pipeline.runner` (stage
 hashes, manifest, atomic stage commits), :mod:`~rotorlab.pipeline.runfolder` (the run folder's layout and

@@ -3,9 +3,10 @@
 Caching and resume: a stage is skipped when ``stages/<stage>/stage.json`` holds the same input hash, computed
 from the vehicle TOML and gain-file bytes, the effective settings (``--quick``/``--tiny`` grids and sizes),
 the seed, the upstream stages' output hashes, the rotorlab version and
-:data:`rotorlab.pipeline.settings.FORMAT_VERSION`. A stage builds its files in ``stages/.<stage>.partial``
-and is renamed into place only when complete, so Ctrl-C, a crash or a full disk loses nothing already done
-and never leaves a half stage that looks finished. The executor is not part of the hash: every executor gives
+:data:`rotorlab.pipeline.settings.FORMAT_VERSION`; for the log pipeline (:func:`run_log_pipeline`) the log's bytes,
+the starting vehicle's TOML and the autopilot asked take the vehicle files' place. A stage builds its files in
+``stages/.<stage>.partial`` and is renamed into place only when complete, so Ctrl-C, a crash or a full disk loses
+nothing already done and never leaves a half stage that looks finished. The executor is not part of the hash: every executor gives
 the same numbers (seeds per task).
 """
 

@@ -229,6 +229,8 @@ def _pilot(ident, cal, tune, val) -> list:
 
 def _evidence(ident, cal, tune, val) -> list:
     out = ["## Evidence", "", "### The log", "",
+           "The identification's own report, with the windows, spectra and every model's held-out prediction: "
+           "`stages/identify/models/report.html` in the run folder.", "",
            f"`{ident['log']}`: {ident['log_autopilot']} {ident['version']} ({ident['format']}), airborne "
            f"{ident['airborne_s']:.1f} s ({ident['airborne_source']}); tuned structure: {ident['autopilot']} at "
            f"{ident['loop_hz']:g} Hz. Parameters the log lacks, taken at the autopilot's defaults: "
