@@ -199,3 +199,50 @@ def test_verdict_recommends_an_axis_only_when_it_is_no_worse():
     assert verdict(tune, val, cal)[0][0].startswith("Not validated on roll")
     # pitch and yaw were not tuned: the verdict says to keep their log gains
     assert any(x.startswith("pitch, yaw: not tuned") for x in verdict(tune, val, cal)[0])
+
+
+# -- the twin pipeline's --controller ------------------------------------------------------------------------------
+
+def test_twin_pipeline_validation_flies_an_autopilot():
+    """The validate stage's task with an autopilot flies its laws (not the cascade) in the same scenario and seed."""
+    from rotorlab.gains import load_gains
+    from rotorlab.pipeline.models import gains_table
+    from rotorlab.pipeline.runner import _controller_setting
+    from rotorlab.pipeline.stages.validate import run_validation
+    from rotorlab.vehicles import gains_path
+
+    std = gains_table(load_gains(gains_path("tuhh-quad", "standard")))
+    base = {"scenario": "gust", "vehicle": "tuhh-quad", "seed": 1, "gains": std, "duration_s": 3.5, "options": {}}
+    ap = _controller_setting("px4:defaults")
+    assert ap["name"] == "px4:defaults" and ap["params"]["MC_ROLLRATE_P"] == 0.15
+    flown = run_validation({**base, "set": ap["name"], "autopilot": ap})
+    cascade = run_validation({**base, "set": "standard"})
+    assert flown["stopped"] is None and cascade["stopped"] is None
+    # the pitch command differs from the cascade's: another law flew on the same gust
+    assert not np.allclose(flown["columns"]["u_lon"], cascade["columns"]["u_lon"])
+
+
+def test_controller_enters_only_the_validate_stage_hash():
+    from rotorlab.pipeline import PipelineOptions, settings_for
+    from rotorlab.pipeline.runner import _controller_setting, stage_hash
+
+    opts = PipelineOptions(vehicle="tuhh-quad", level="tiny")
+    s0 = settings_for("tiny")
+    s1 = {**s0, "controller": _controller_setting("px4:defaults")}
+    ups = {}
+    assert stage_hash("validate", opts, s0, {}, ups) != stage_hash("validate", opts, s1, {}, ups)
+    assert stage_hash("identify", opts, s0, {}, ups) == stage_hash("identify", opts, s1, {}, ups)
+
+
+@pytest.mark.parametrize("case, expect", [
+    (["--controller", "px4:{tmp}/missing.params"], "missing.params"),
+    (["--controller", "betaflight:x"], "--controller: expected AUTOPILOT:PARAMS"),
+    (["--controller", "px4:defaults", "--log", "{tmp}/flight.ulg"], "--controller: expected it without --log"),
+])
+def test_bad_controller_exits_2(case, expect, tmp_path, capsys):
+    (tmp_path / "flight.ulg").write_bytes(b"not a ulog")
+    argv = ["pipeline", *[a.format(tmp=tmp_path) for a in case], "--out", str(tmp_path / "run"), "--tiny",
+            "--executor", "serial", "--no-progress"]
+    rc = main(argv)
+    err = capsys.readouterr().err
+    assert rc == 2 and expect in err and "Traceback" not in err, err

@@ -33,6 +33,9 @@ def add_parser(sub):
     p.add_argument("--log", default=None, metavar="FLIGHT",
                    help="start from a flight log (.ulg, .bin/.log, or a ulog2csv folder): identify, calibrate the "
                         "twin, tune the autopilot's controller, validate in the twin, write the parameter file")
+    p.add_argument("--controller", default=None, metavar="AUTOPILOT:PARAMS",
+                   help="also fly an autopilot's own laws in the validation scenarios, beside the gain sets: "
+                        "px4:FILE.params, ardupilot:FILE.parm, or px4:defaults")
     p.add_argument("--autopilot", default=None, choices=("px4", "ardupilot"),
                    help="with --log: the autopilot whose controller is tuned (default: the log's)")
     p.add_argument("--out", default=None, help="run folder (default runs/pipeline-VEHICLE[-quick]-seedN); "
@@ -63,6 +66,11 @@ def run(args) -> int:
         return run_log(args, level)
     if args.autopilot is not None:
         raise CLIError("--autopilot: expected it with --log FLIGHT (the twin pipeline tunes the rotorlab cascade)")
+    controller = args.controller
+    if controller is not None:
+        head, sep, rest = controller.partition(":")
+        if sep and rest not in ("", "defaults"):
+            controller = f"{head}:{Path(rest).resolve()}"  # every worker reads the same file
     vehicle = args.vehicle or "anteos-p2a2"
     try:
         spec = load_vehicle(vehicle)
@@ -75,7 +83,8 @@ def run(args) -> int:
     # named by the vehicle's name, never its path (`--vehicle /tmp/x.toml` made runs/pipeline-/tmp/...)
     out = Path(args.out or f"runs/pipeline-{spec.name}{'' if level == 'full' else '-' + level}-seed{args.seed}")
     opts = PipelineOptions(vehicle=vehicle, out=out, level=level, seed=args.seed, executor=args.executor,
-                           workers=args.workers, progress=not args.no_progress, n_boot=args.n_boot, n_mc=args.n_mc)
+                           workers=args.workers, progress=not args.no_progress, n_boot=args.n_boot, n_mc=args.n_mc,
+                           controller=controller)
     try:
         run_pipeline(opts)
         print_verdict(out)
@@ -92,6 +101,9 @@ def run_log(args, level: str) -> int:
     from rotorlab.pipeline import LogPipelineOptions, run_log_pipeline
     from rotorlab.vehicles import VEHICLES_DIR, vehicle_path
 
+    if args.controller is not None:
+        raise CLIError("--controller: expected it without --log (the log pipeline flies the log's parameters and the "
+                       "tuned set itself)")
     if args.n_boot is not None or args.n_mc is not None:
         raise CLIError("--n-boot/--n-mc: expected them without --log (the log pipeline has no bootstrap or Monte "
                        "Carlo stage)")

@@ -169,6 +169,33 @@ def run_folder_lock(out: Path):
 _RUN_CHOICES = (("seed", "--seed"), ("level", "--quick/--tiny"), ("settings", "--n-boot/--n-mc"))
 
 
+#: settings that choose what a stage adds, not the numbers a run folder holds: another --controller re-runs the
+#: validation (its hash) into the same folder instead of refusing it
+_NOT_RUN_CHOICES = ("controller",)
+
+
+def _choices(settings):
+    return None if settings is None else {k: v for k, v in settings.items() if k not in _NOT_RUN_CHOICES}
+
+
+def _controller_setting(value: str | None) -> dict | None:
+    """``--controller AUTOPILOT:PARAMS`` as the validate stage's setting: the autopilot, its complete parameters
+    and the set's name in the report (``px4:FILE``)."""
+    if value is None:
+        return None
+    from rotorlab.sim.control.autopilot import parse_autopilot
+
+    spec = parse_autopilot(value)  # a missing or bad file: ConfigError naming it
+    if spec is None:
+        from rotorlab import autopilots
+
+        raise PipelineError(f"--controller: expected AUTOPILOT:PARAMS with AUTOPILOT one of "
+                            f"{', '.join(autopilots.AUTOPILOTS)} and PARAMS 'defaults' or a parameter file, got "
+                            f"{value!r}")
+    return {"name": f"{spec.autopilot}:{Path(spec.source).name}", "autopilot": spec.autopilot,
+            "params": dict(spec.params), "source": spec.source}
+
+
 def _open_run_folder(out: Path, vehicle: str, seed: int | None = None, level: str | None = None,
                      settings: dict | None = None) -> dict:
     """The manifest of ``out`` (a fresh one for a new or empty folder), refusing a folder that is not a
@@ -192,9 +219,11 @@ def _open_run_folder(out: Path, vehicle: str, seed: int | None = None, level: st
     if man.get("vehicle") != vehicle:
         raise PipelineError(f"{out} holds a pipeline run of vehicle '{man.get('vehicle')}', not '{vehicle}'; "
                             "use another --out folder")
-    asked = {"seed": seed, "level": level, "settings": settings}
+    asked = {"seed": seed, "level": level, "settings": _choices(settings)}
     if man.get("stages"):
         for key, flag in _RUN_CHOICES:
+            if key == "settings" and isinstance(man.get(key), dict):
+                man = {**man, key: _choices(man[key])}
             if asked[key] is not None and key in man and man[key] != json.loads(json.dumps(asked[key])):
                 was = man[key] if key != "settings" else {k: v for k, v in man[key].items()
                                                           if isinstance(man[key], dict) and v != asked[key].get(k)}
@@ -242,6 +271,7 @@ def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
         raise PipelineError(f"the pipeline starts from the vehicle's 'standard' gain set, in gains/standard.toml "
                             f"beside its file ({gains_dir(v)}): {exc}") from None
     s = settings_for(opts.level, opts.n_boot, opts.n_mc)
+    s["controller"] = _controller_setting(opts.controller)
     out = Path(opts.out)
     if out.exists() and not out.is_dir():
         raise PipelineError(f"--out {out} is a file; expected a run folder")
@@ -316,7 +346,7 @@ def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log, *, regis
     registry = REGISTRY if registry is None else registry
     order = tuple(registry)
     man = _open_run_folder(out, opts.vehicle, opts.seed, opts.level, s)
-    man.update(seed=opts.seed, level=opts.level, settings=s, **(extra or {}))
+    man.update(seed=opts.seed, level=opts.level, settings=_choices(s), **(extra or {}))
     out.mkdir(parents=True, exist_ok=True)
     (out / "stages").mkdir(exist_ok=True)
     atomic.write_json(out / "manifest.json", man)

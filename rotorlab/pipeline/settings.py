@@ -70,6 +70,9 @@ class PipelineOptions:
     progress: bool = True
     n_boot: int | None = None
     n_mc: int | None = None
+    #: an autopilot's laws to fly in the validation scenarios beside the gain sets (``px4:PARAMS``,
+    #: ``ardupilot:PARAMS``, ``PARAMS`` a parameter file or ``defaults``; ``--controller``)
+    controller: str | None = None
 
 
 @dataclasses.dataclass
@@ -107,7 +110,7 @@ def settings_for(level: str, n_boot: int | None = None, n_mc: int | None = None)
     """
     if level not in _LEVELS:
         raise PipelineError(f"unknown level '{level}'; valid: {', '.join(LEVELS)}")
-    s = dict(_LEVELS[level], level=level)
+    s = dict(_LEVELS[level], level=level, controller=None)
     if n_boot is not None:
         s["n_boot"] = int(n_boot)
     if n_mc is not None:
