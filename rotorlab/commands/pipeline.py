@@ -1,9 +1,13 @@
 """Run the end-to-end job on a vehicle's twin: experiments -> identification -> bootstrap -> tuning ->
-re-injection -> report.
+re-injection -> report. With --log FLIGHT.ulg|FLIGHT.bin, start from a real flight instead: identify its three
+axes -> calibrate a twin to them -> tune the autopilot's own controller -> fly the log's parameters and the tuned
+set in the twin -> report and the parameter file.
 
 Writes OUT/report/report.md and report.html (tables and figures), summary.json (every number), the models,
-the gain sets and rerun recordings of the validation runs (open them with rotorlab view OUT). Every stage is
-written atomically and skipped when its inputs are unchanged, so an interrupted run resumes where it stopped.
+the gain sets and rerun recordings of the validation runs (open them with rotorlab view OUT); with --log,
+OUT/report/report.md (what a pilot needs first), summary.json, tuned.params or tuned.parm and the calibrated
+vehicle.toml. Every stage is written atomically and skipped when its inputs are unchanged, so an interrupted
+run resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -24,7 +28,16 @@ MAX_SAMPLES = 100_000
 def add_parser(sub):
     p = sub.add_parser("pipeline", help="run the end-to-end identification + tuning pipeline on a twin (resumable)",
                        **describe(__doc__))
-    p.add_argument("--vehicle", default="anteos-p2a2", help="vehicle name (see rotorlab list)")
+    p.add_argument("--vehicle", default=None, help="vehicle name (see rotorlab list) or vehicle TOML (default "
+                   "anteos-p2a2); with --log the twin to calibrate, e.g. from rotorlab vehicle new (default x500)")
+    p.add_argument("--log", default=None, metavar="FLIGHT",
+                   help="start from a flight log (.ulg, .bin/.log, or a ulog2csv folder): identify, calibrate the "
+                        "twin, tune the autopilot's controller, validate in the twin, write the parameter file")
+    p.add_argument("--controller", default=None, metavar="AUTOPILOT:PARAMS",
+                   help="also fly an autopilot's own laws in the validation scenarios, beside the gain sets: "
+                        "px4:FILE.params, ardupilot:FILE.parm, or px4:defaults")
+    p.add_argument("--autopilot", default=None, choices=("px4", "ardupilot"),
+                   help="with --log: the autopilot whose controller is tuned (default: the log's)")
     p.add_argument("--out", default=None, help="run folder (default runs/pipeline-VEHICLE[-quick]-seedN); "
                                                "re-running into it resumes, skipping unchanged stages")
     p.add_argument("--quick", action="store_true", help="half-length campaign, published best settings plus one alternative per grid, 50 bootstrap "
@@ -49,7 +62,16 @@ def run(args) -> int:
     from rotorlab.vehicles import VEHICLES_DIR, load_vehicle, vehicle_path
 
     level = "tiny" if args.tiny else ("quick" if args.quick else "full")
-    vehicle = args.vehicle
+    if args.log is not None:
+        return run_log(args, level)
+    if args.autopilot is not None:
+        raise CLIError("--autopilot: expected it with --log FLIGHT (the twin pipeline tunes the rotorlab cascade)")
+    controller = args.controller
+    if controller is not None:
+        head, sep, rest = controller.partition(":")
+        if sep and rest not in ("", "defaults"):
+            controller = f"{head}:{Path(rest).resolve()}"  # every worker reads the same file
+    vehicle = args.vehicle or "anteos-p2a2"
     try:
         spec = load_vehicle(vehicle)
     except RotorlabError as exc:
@@ -61,7 +83,8 @@ def run(args) -> int:
     # named by the vehicle's name, never its path (`--vehicle /tmp/x.toml` made runs/pipeline-/tmp/...)
     out = Path(args.out or f"runs/pipeline-{spec.name}{'' if level == 'full' else '-' + level}-seed{args.seed}")
     opts = PipelineOptions(vehicle=vehicle, out=out, level=level, seed=args.seed, executor=args.executor,
-                           workers=args.workers, progress=not args.no_progress, n_boot=args.n_boot, n_mc=args.n_mc)
+                           workers=args.workers, progress=not args.no_progress, n_boot=args.n_boot, n_mc=args.n_mc,
+                           controller=controller)
     try:
         run_pipeline(opts)
         print_verdict(out)
@@ -71,6 +94,53 @@ def run(args) -> int:
         print(f"\ninterrupted: completed stages are kept in {out}; run the same command again to resume")
         return 130
     return 0
+
+
+def run_log(args, level: str) -> int:
+    """``rotorlab pipeline --log FLIGHT``: the log pipeline (:func:`rotorlab.pipeline.run_log_pipeline`)."""
+    from rotorlab.pipeline import LogPipelineOptions, run_log_pipeline
+    from rotorlab.vehicles import VEHICLES_DIR, vehicle_path
+
+    if args.controller is not None:
+        raise CLIError("--controller: expected it without --log (the log pipeline flies the log's parameters and the "
+                       "tuned set itself)")
+    if args.n_boot is not None or args.n_mc is not None:
+        raise CLIError("--n-boot/--n-mc: expected them without --log (the log pipeline has no bootstrap or Monte "
+                       "Carlo stage)")
+    log = Path(args.log)
+    vehicle = args.vehicle
+    try:
+        if vehicle is not None and vehicle_path(vehicle) != VEHICLES_DIR / str(vehicle) / "vehicle.toml":
+            vehicle = str(Path(vehicle).resolve())  # every worker reads the same file
+    except RotorlabError as exc:
+        raise CLIError(str(exc)) from None
+    stem = log.stem if log.suffix else log.name
+    out = Path(args.out or f"runs/pipeline-log-{stem}{'' if level == 'full' else '-' + level}-seed{args.seed}")
+    opts = LogPipelineOptions(out=out, level=level, seed=args.seed,
+                              executor=args.executor, workers=args.workers, progress=not args.no_progress,
+                              log=log.resolve(), vehicle_file=vehicle, autopilot=args.autopilot)
+    try:
+        run_log_pipeline(opts)
+        print_verdict(out)
+        _print_parameter_file(out)
+    except RotorlabError as exc:
+        raise CLIError(str(exc)) from None
+    except KeyboardInterrupt:
+        print(f"\ninterrupted: completed stages are kept in {out}; run the same command again to resume")
+        return 130
+    return 0
+
+
+def _print_parameter_file(out: Path) -> None:
+    import json
+
+    from rotorlab.pipeline import stage_dir
+
+    summary = stage_dir(out, "report") / "summary.json"
+    if summary.is_file():
+        name = json.loads(summary.read_text(encoding="utf-8")).get("parameter_file")
+        print(f"\nparameter file: {stage_dir(out, 'report') / name}" if name else
+              "\nno parameter file to fly: keep the log's parameters (report.md says why)")
 
 
 def print_verdict(out: Path) -> None:

@@ -3,9 +3,10 @@
 Caching and resume: a stage is skipped when ``stages/<stage>/stage.json`` holds the same input hash, computed
 from the vehicle TOML and gain-file bytes, the effective settings (``--quick``/``--tiny`` grids and sizes),
 the seed, the upstream stages' output hashes, the rotorlab version and
-:data:`rotorlab.pipeline.settings.FORMAT_VERSION`. A stage builds its files in ``stages/.<stage>.partial``
-and is renamed into place only when complete, so Ctrl-C, a crash or a full disk loses nothing already done
-and never leaves a half stage that looks finished. The executor is not part of the hash: every executor gives
+:data:`rotorlab.pipeline.settings.FORMAT_VERSION`; for the log pipeline (:func:`run_log_pipeline`) the log's bytes,
+the starting vehicle's TOML and the autopilot asked take the vehicle files' place. A stage builds its files in
+``stages/.<stage>.partial`` and is renamed into place only when complete, so Ctrl-C, a crash or a full disk loses
+nothing already done and never leaves a half stage that looks finished. The executor is not part of the hash: every executor gives
 the same numbers (seeds per task).
 """
 
@@ -26,12 +27,20 @@ from rotorlab.config import read_json
 from rotorlab.errors import RotorlabError
 from rotorlab.executor import get_executor
 from rotorlab.pipeline.runfolder import RunFolder, StageContext, read_manifest, stage_dir
-from rotorlab.pipeline.settings import FORMAT_VERSION, PipelineError, PipelineOptions, settings_for
-from rotorlab.pipeline.stages import REGISTRY, STAGES
+from rotorlab.pipeline.settings import (
+    FORMAT_VERSION,
+    LogPipelineOptions,
+    PipelineError,
+    PipelineOptions,
+    log_settings_for,
+    settings_for,
+)
+from rotorlab.pipeline.stages import LOG_REGISTRY, LOG_STAGES, REGISTRY, STAGES
 from rotorlab.tune.spec import builtin_specs
 from rotorlab.vehicles import gains_dir, gains_path, load_vehicle, vehicle_path
 
-__all__ = ["run_pipeline", "stage_hash", "dir_hash", "run_folder_lock", "LOCK_NAME"]
+__all__ = ["run_pipeline", "run_log_pipeline", "log_fingerprint", "stage_hash", "dir_hash", "run_folder_lock",
+           "LOCK_NAME"]
 
 LOCK_NAME = ".rotorlab.lock"
 
@@ -70,11 +79,13 @@ def dir_hash(path: Path) -> str:
 
 
 def stage_hash(stage: str, opts: PipelineOptions, s: dict, fingerprint: dict, upstream_hashes: dict,
-               version: str = __version__) -> str:
-    """Input hash of ``stage``: everything its numbers depend on (see the module docstring)."""
+               version: str = __version__, registry: dict | None = None) -> str:
+    """Input hash of ``stage``: everything its numbers depend on (see the module docstring). ``registry``: the
+    stages of the pipeline the stage belongs to (default: the twin pipeline's :data:`REGISTRY`)."""
+    registry = REGISTRY if registry is None else registry
     return _sha({"format_version": FORMAT_VERSION, "rotorlab": version, "stage": stage, "vehicle": opts.vehicle,
                  "vehicle_files": fingerprint, "seed": opts.seed,
-                 "settings": {k: s[k] for k in REGISTRY[stage].settings}, "upstream": upstream_hashes})
+                 "settings": {k: s[k] for k in registry[stage].settings}, "upstream": upstream_hashes})
 
 
 #: descriptors of the run-folder locks this process holds: a forked child (a pool worker) closes its copies at
@@ -158,6 +169,33 @@ def run_folder_lock(out: Path):
 _RUN_CHOICES = (("seed", "--seed"), ("level", "--quick/--tiny"), ("settings", "--n-boot/--n-mc"))
 
 
+#: settings that choose what a stage adds, not the numbers a run folder holds: another --controller re-runs the
+#: validation (its hash) into the same folder instead of refusing it
+_NOT_RUN_CHOICES = ("controller",)
+
+
+def _choices(settings):
+    return None if settings is None else {k: v for k, v in settings.items() if k not in _NOT_RUN_CHOICES}
+
+
+def _controller_setting(value: str | None) -> dict | None:
+    """``--controller AUTOPILOT:PARAMS`` as the validate stage's setting: the autopilot, its complete parameters
+    and the set's name in the report (``px4:FILE``)."""
+    if value is None:
+        return None
+    from rotorlab.sim.control.autopilot import parse_autopilot
+
+    spec = parse_autopilot(value)  # a missing or bad file: ConfigError naming it
+    if spec is None:
+        from rotorlab import autopilots
+
+        raise PipelineError(f"--controller: expected AUTOPILOT:PARAMS with AUTOPILOT one of "
+                            f"{', '.join(autopilots.AUTOPILOTS)} and PARAMS 'defaults' or a parameter file, got "
+                            f"{value!r}")
+    return {"name": f"{spec.autopilot}:{Path(spec.source).name}", "autopilot": spec.autopilot,
+            "params": dict(spec.params), "source": spec.source}
+
+
 def _open_run_folder(out: Path, vehicle: str, seed: int | None = None, level: str | None = None,
                      settings: dict | None = None) -> dict:
     """The manifest of ``out`` (a fresh one for a new or empty folder), refusing a folder that is not a
@@ -181,9 +219,11 @@ def _open_run_folder(out: Path, vehicle: str, seed: int | None = None, level: st
     if man.get("vehicle") != vehicle:
         raise PipelineError(f"{out} holds a pipeline run of vehicle '{man.get('vehicle')}', not '{vehicle}'; "
                             "use another --out folder")
-    asked = {"seed": seed, "level": level, "settings": settings}
+    asked = {"seed": seed, "level": level, "settings": _choices(settings)}
     if man.get("stages"):
         for key, flag in _RUN_CHOICES:
+            if key == "settings" and isinstance(man.get(key), dict):
+                man = {**man, key: _choices(man[key])}
             if asked[key] is not None and key in man and man[key] != json.loads(json.dumps(asked[key])):
                 was = man[key] if key != "settings" else {k: v for k, v in man[key].items()
                                                           if isinstance(man[key], dict) and v != asked[key].get(k)}
@@ -231,6 +271,7 @@ def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
         raise PipelineError(f"the pipeline starts from the vehicle's 'standard' gain set, in gains/standard.toml "
                             f"beside its file ({gains_dir(v)}): {exc}") from None
     s = settings_for(opts.level, opts.n_boot, opts.n_mc)
+    s["controller"] = _controller_setting(opts.controller)
     out = Path(opts.out)
     if out.exists() and not out.is_dir():
         raise PipelineError(f"--out {out} is a file; expected a run folder")
@@ -241,38 +282,100 @@ def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
         return _run_locked(opts, s, out, stages, log)
 
 
-def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log) -> dict:
+def log_fingerprint(opts: LogPipelineOptions) -> dict:
+    """Content hashes of a log run's inputs: the log (every file of a ulog2csv folder), the starting vehicle's
+    TOML (or the shipped default's) and the autopilot asked for, so that changing any of them re-runs what
+    depends on it."""
+    from rotorlab.pipeline.stages.log_calibrate import DEFAULT_VEHICLE
+
+    log = Path(opts.log)
+    files = sorted(f for f in log.rglob("*") if f.is_file()) if log.is_dir() else [log]
+    h = hashlib.sha256()
+    for f in files:
+        h.update(f.relative_to(log).as_posix().encode() if log.is_dir() else b"")
+        with open(f, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    vehicle = opts.vehicle_file or DEFAULT_VEHICLE
+    return {"log": h.hexdigest(), "vehicle": _sha(vehicle_path(vehicle).read_bytes()),
+            "autopilot": opts.autopilot or "from the log"}
+
+
+def run_log_pipeline(opts: LogPipelineOptions, *, stages=LOG_STAGES, log=print) -> dict:
+    """Run (or resume) the log pipeline (``rotorlab pipeline --log``) into ``opts.out``; returns the manifest.
+
+    The same machinery as :func:`run_pipeline` (locked run folder, stage hashes, atomic stage commits, the
+    executor), entered from a flight log: identify -> calibrate -> tune -> validate -> report
+    (:data:`rotorlab.pipeline.stages.LOG_REGISTRY`). The run's identity in its folder is ``log:<file name>``.
+
+    Examples
+    --------
+    >>> from rotorlab.pipeline import LogPipelineOptions, run_log_pipeline
+    >>> opts = LogPipelineOptions(log="flight.ulg", out="runs/flight", level="quick")
+    >>> man = run_log_pipeline(opts)  # doctest: +SKIP
+    """
+    from rotorlab import autopilots
+    from rotorlab.ident.flightlogs import detect_format
+
+    path = Path(opts.log)
+    if not path.exists():
+        raise PipelineError(f"--log {path}: no such file or folder")
+    detect_format(path)  # an unknown suffix: DataError naming the formats, before any work
+    if opts.autopilot is not None and opts.autopilot not in autopilots.AUTOPILOTS:
+        raise PipelineError(f"--autopilot: expected one of {', '.join(autopilots.AUTOPILOTS)}, got {opts.autopilot!r}")
+    if opts.vehicle_file is not None:
+        load_vehicle(opts.vehicle_file)  # a bad vehicle TOML: ConfigError naming file and field, before any work
+    s = log_settings_for(opts.level)
+    out = Path(opts.out)
+    if out.exists() and not out.is_dir():
+        raise PipelineError(f"--out {out} is a file; expected a run folder")
+    _open_run_folder(out, opts.vehicle, opts.seed, opts.level, s)
+    atomic.check_writable_dir(out, "run folder")
+    fp = log_fingerprint(opts)
+    with run_folder_lock(out):
+        return _run_locked(opts, s, out, stages, log, registry=LOG_REGISTRY, fingerprint=fp,
+                           extra={"log": str(path.resolve()), "start_vehicle": opts.vehicle_file,
+                                  "autopilot": opts.autopilot})
+
+
+def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log, *, registry: dict | None = None,
+                fingerprint: dict | None = None, extra: dict | None = None) -> dict:
+    """Run the stages of ``registry`` (default: the twin pipeline's) in its order under the held lock;
+    ``fingerprint``: the content hashes of the run's input files (default: the vehicle's configuration);
+    ``extra``: more entries for the manifest (the log pipeline's log and autopilot)."""
+    registry = REGISTRY if registry is None else registry
+    order = tuple(registry)
     man = _open_run_folder(out, opts.vehicle, opts.seed, opts.level, s)
-    man.update(seed=opts.seed, level=opts.level, settings=s)
+    man.update(seed=opts.seed, level=opts.level, settings=_choices(s), **(extra or {}))
     out.mkdir(parents=True, exist_ok=True)
     (out / "stages").mkdir(exist_ok=True)
     atomic.write_json(out / "manifest.json", man)
     run = RunFolder(out, opts.vehicle)
-    fp = _vehicle_fingerprint(opts.vehicle)
+    fp = _vehicle_fingerprint(opts.vehicle) if fingerprint is None else fingerprint
     t_all = time.perf_counter()
     out_hashes: dict = {}
     executor = None
     try:
-        for i, stage in enumerate(STAGES, 1):
+        for i, stage in enumerate(order, 1):
             if stage not in stages:
                 continue
             final = stage_dir(out, stage)
             ups = {u: out_hashes.get(u) or (dir_hash(stage_dir(out, u)) if stage_dir(out, u).exists() else None)
-                   for u in REGISTRY[stage].upstream}
-            h = stage_hash(stage, opts, s, fp, ups)
+                   for u in registry[stage].upstream}
+            h = stage_hash(stage, opts, s, fp, ups, registry=registry)
             cached = _cached_hash(final, h, man["stages"].get(stage), log)
             if cached is not None:
                 out_hashes[stage] = cached
-                log(f"[{i}/{len(STAGES)}] {stage:<12} cached ({final})")
+                log(f"[{i}/{len(order)}] {stage:<12} cached ({final})")
                 continue
             if executor is None:
                 executor = get_executor(opts.executor, opts.workers)
             work = out / "stages" / f".{stage}.partial"
             shutil.rmtree(work, ignore_errors=True)
             work.mkdir(parents=True)
-            log(f"[{i}/{len(STAGES)}] {stage:<12} running ...")
+            log(f"[{i}/{len(order)}] {stage:<12} running ...")
             t0 = time.perf_counter()
-            result = REGISTRY[stage].run(StageContext(run, work, opts, s, executor))
+            result = registry[stage].run(StageContext(run, work, opts, s, executor))
             dt_s = time.perf_counter() - t0
             doc = {"stage": stage, "hash": h, "seconds": dt_s, "upstream": ups, "result": result}
             atomic.write_json(work / "stage.json", doc)
@@ -283,7 +386,7 @@ def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log) -> dict:
             work.rename(final)  # the commit point: a stage folder either is complete or does not exist
             man["stages"][stage] = {"hash": h, "output_hash": out_hashes[stage], "seconds": round(dt_s, 3)}
             atomic.write_json(out / "manifest.json", man)
-            log(f"[{i}/{len(STAGES)}] {stage:<12} done in {dt_s:.1f} s")
+            log(f"[{i}/{len(order)}] {stage:<12} done in {dt_s:.1f} s")
     finally:
         if executor is not None:
             executor.close()

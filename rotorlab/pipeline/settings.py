@@ -9,7 +9,8 @@ from pathlib import Path
 from rotorlab.errors import RotorlabError
 from rotorlab.tune.cascade import DT_S
 
-__all__ = ["FORMAT_VERSION", "DT_S", "LEVELS", "PipelineError", "PipelineOptions", "settings_for"]
+__all__ = ["FORMAT_VERSION", "DT_S", "LEVELS", "PipelineError", "PipelineOptions", "LogPipelineOptions", "LOG_LEVELS",
+           "settings_for", "log_settings_for"]
 
 # run-folder format: a folder written by another format is refused, never mixed (2: logs in rotorlab.logformat)
 FORMAT_VERSION = 2
@@ -42,6 +43,15 @@ _LEVELS = {
 }
 LEVELS = tuple(_LEVELS)
 
+# The log pipeline (rotorlab pipeline --log): the identification's held-out fraction, tuning starts and
+# iterations, and the twin scenarios' lengths (s; the gust starts at 2 s and lasts 1 s)
+_LOG_LEVELS = {
+    "full": dict(holdout=0.4, tune_starts=4, tune_max_iter=30, validation_s={"gust": 8.0, "hover": 30.0}),
+    "quick": dict(holdout=0.4, tune_starts=2, tune_max_iter=30, validation_s={"gust": 6.0, "hover": 12.0}),
+    "tiny": dict(holdout=0.4, tune_starts=1, tune_max_iter=8, validation_s={"gust": 3.5, "hover": 5.0}),
+}
+LOG_LEVELS = tuple(_LOG_LEVELS)
+
 
 class PipelineError(RotorlabError):
     """The pipeline cannot run as asked (incompatible run folder, bad option)."""
@@ -60,6 +70,36 @@ class PipelineOptions:
     progress: bool = True
     n_boot: int | None = None
     n_mc: int | None = None
+    #: an autopilot's laws to fly in the validation scenarios beside the gain sets (``px4:PARAMS``,
+    #: ``ardupilot:PARAMS``, ``PARAMS`` a parameter file or ``defaults``; ``--controller``)
+    controller: str | None = None
+
+
+@dataclasses.dataclass
+class LogPipelineOptions(PipelineOptions):
+    """What ``rotorlab pipeline --log`` was asked: the flight log, the vehicle TOML to start the twin from (None:
+    the shipped x500 twin, PX4's reference vehicle), the autopilot whose structure is tuned (None: the log's).
+    ``vehicle`` is set to the run's identity in the run folder, ``log:<log file name>``.
+
+    Examples
+    --------
+    >>> LogPipelineOptions(log=Path("runs/flight.ulg"), level="quick").vehicle
+    'log:flight.ulg'
+    """
+
+    log: Path = Path("flight.ulg")
+    vehicle_file: str | None = None
+    autopilot: str | None = None
+
+    def __post_init__(self):
+        self.vehicle = f"log:{Path(self.log).name}"
+
+
+def log_settings_for(level: str) -> dict:
+    """Effective settings of a log pipeline run (``full``, ``quick``, ``tiny``); part of every stage hash."""
+    if level not in _LOG_LEVELS:
+        raise PipelineError(f"unknown level '{level}'; valid: {', '.join(_LOG_LEVELS)}")
+    return dict(_LOG_LEVELS[level], level=level)
 
 
 def settings_for(level: str, n_boot: int | None = None, n_mc: int | None = None) -> dict:
@@ -70,7 +110,7 @@ def settings_for(level: str, n_boot: int | None = None, n_mc: int | None = None)
     """
     if level not in _LEVELS:
         raise PipelineError(f"unknown level '{level}'; valid: {', '.join(LEVELS)}")
-    s = dict(_LEVELS[level], level=level)
+    s = dict(_LEVELS[level], level=level, controller=None)
     if n_boot is not None:
         s["n_boot"] = int(n_boot)
     if n_mc is not None:

@@ -1,5 +1,7 @@
 """Stage 5, validate: every gain set (shipped and tuned) re-injected into the twin's validation scenarios,
-with common random numbers (every set sees the same noise, gusts and turbulence)."""
+with common random numbers (every set sees the same noise, gusts and turbulence); with ``--controller
+px4:PARAMS`` (or ``ardupilot:PARAMS``) that autopilot's laws fly the same scenarios too, as one more set named
+``px4:PARAMS``."""
 
 from __future__ import annotations
 
@@ -9,6 +11,7 @@ from rotorlab.gains import parse_gains
 from rotorlab.pipeline.models import gains_table
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable, write_log
 from rotorlab.sim import scenarios
+from rotorlab.sim.control.autopilot import AutopilotSpec
 from rotorlab.sim.runner import run_scenario
 
 __all__ = ["STAGE", "VALIDATION_SCENARIOS", "DESIGN_EXPERIMENTS", "run_validation", "run_design_experiment"]
@@ -30,7 +33,15 @@ def run_validation(task: dict) -> dict:
         return {"skipped": f"skipped: scenario '{task['scenario']}' is not registered in rotorlab.sim.scenarios"}
     gs = parse_gains(task["gains"], name=task["set"])
     opts = dict(task.get("options") or {})
-    if task["scenario"] == "hover" and task.get("standard") is not None:
+    controller = None
+    if task.get("autopilot") is not None:
+        # an autopilot's laws fly in place of the attitude cascade; hover cannot switch to them in flight, so it
+        # flies them throughout and is scored on the whole record after the settle time ("all")
+        ap = task["autopilot"]
+        controller = AutopilotSpec.from_params(ap["autopilot"], ap["params"], source=ap["source"])
+        if task["scenario"] == "hover":
+            opts["switch_s"] = "none"
+    elif task["scenario"] == "hover" and task.get("standard") is not None:
         # the published flight test: standard gains, switched in flight to the set under test. The standard set
         # switches to itself, so every set is scored on the same window of the same turbulence (common random
         # numbers): the gust gradients' pitch disturbance lies below 0.5 Hz, and two windows of one record
@@ -39,7 +50,7 @@ def run_validation(task: dict) -> dict:
         gs = parse_gains(task["standard"], name="standard")
     try:
         r = run_scenario(task["scenario"], task["vehicle"], gains=gs, seed=task["seed"],
-                         duration_s=task.get("duration_s"), options=opts)
+                         duration_s=task.get("duration_s"), options=opts, controller=controller)
     except Exception as exc:  # a scenario refusing this vehicle is reported, not fatal
         return {"skipped": f"skipped: {type(exc).__name__}: {exc}"}
     return {"metrics": jsonable(r.metrics), "stopped": r.stopped, "scene": r.info.get("scene"),
@@ -80,6 +91,11 @@ def run(ctx: StageContext) -> dict:
             tasks.append({"scenario": sc, "set": name, "vehicle": ctx.vehicle, "seed": seed,
                           "gains": gains_table(gs), "duration_s": ctx.settings["validation_s"].get(sc),
                           "options": {}, "standard": gains_table(sets["standard"]) if "standard" in sets else None})
+        ap = ctx.settings.get("controller")
+        if ap is not None:  # the autopilot flies over the standard set (its position and altitude loops)
+            tasks.append({"scenario": sc, "set": ap["name"], "vehicle": ctx.vehicle, "seed": seed,
+                          "gains": gains_table(sets["standard"]), "duration_s": ctx.settings["validation_s"].get(sc),
+                          "options": {}, "autopilot": ap})
     results = ctx.executor.map(run_validation, tasks, desc="validation", progress=ctx.opts.progress)
     (ctx.work / "logs").mkdir()
     res = {"validation": {}, "skipped": {}}
@@ -107,4 +123,4 @@ def run(ctx: StageContext) -> dict:
     return res
 
 
-STAGE = Stage("validate", upstream=("tune",), settings=("validation_s",), run=run)
+STAGE = Stage("validate", upstream=("tune",), settings=("validation_s", "controller"), run=run)

@@ -1,0 +1,107 @@
+"""Log stage 1, identify: read the flight log and identify its three axes (:func:`rotorlab.ident.flightlogs.run.
+identify_flight_log`): per axis the closed loop (rate set-point -> rate), the plant (rate-loop output -> rate) where
+the log has it, and the plant through the autopilot's known rate controller (the log's parameters). Writes
+``models/<axis>[-<kind>].json`` and the identification report (``models/report.html``) and keeps the log's
+parameters (``log.params``, the names of older firmware mapped onto the current laws')."""
+
+from __future__ import annotations
+
+import control as ct
+
+from rotorlab import autopilots
+from rotorlab.ident.flightlogs.run import controller_params, identify_flight_log
+from rotorlab.ident.modelio import load_model
+from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
+
+__all__ = ["STAGE", "plant_of", "usable_plant", "MIN_PLANT_VAF_PCT"]
+
+#: a plant model is calibrated to and tuned on only where it predicts the held-out flight: at least this VAF (%)
+#: and at least half the closed-loop model's (what the set-point -> rate data allows at all). The plant through
+#: the controller is scored closed again with it (set-point -> rate, comparable with the closed-loop model), the
+#: direct plant open loop. An axis without one keeps its inertia in the twin and the log's gains.
+MIN_PLANT_VAF_PCT = 30.0
+
+
+def usable_plant(axis_models: dict) -> tuple[str | None, str]:
+    """The plant model of an axis to calibrate to and tune on (``"plant-indirect"``, ``"plant"`` or None) and,
+    when none, why (:data:`MIN_PLANT_VAF_PCT`).
+
+    Parameters
+    ----------
+    axis_models : dict
+        Kind -> ``{"vaf_holdout_pct": ...}`` of one axis, with ``"closed-loop"``.
+
+    Returns
+    -------
+    kind : str or None
+    why : str
+        Empty when a plant is usable.
+
+    Examples
+    --------
+    >>> usable_plant({"closed-loop": {"vaf_holdout_pct": 56.2}, "plant-indirect": {"vaf_holdout_pct": 38.5}})
+    ('plant-indirect', '')
+    >>> usable_plant({"closed-loop": {"vaf_holdout_pct": 59.3}, "plant-indirect": {"vaf_holdout_pct": 12.4}})[0] is None
+    True
+    """
+    cl = axis_models["closed-loop"]["vaf_holdout_pct"]
+    floor = max(MIN_PLANT_VAF_PCT, 0.5 * cl)
+    tried = []
+    for kind in ("plant-indirect", "plant"):
+        m = axis_models.get(kind)
+        if m is None:
+            continue
+        if m["vaf_holdout_pct"] >= floor:
+            return kind, ""
+        tried.append(f"{kind} {m['vaf_holdout_pct']:.1f} %")
+    return None, (f"no plant model predicts the held-out flight well enough to tune on ({', '.join(tried) or 'none'}"
+                  f"; needed {floor:.1f} %: at least {MIN_PLANT_VAF_PCT:g} % and half the closed loop's "
+                  f"{cl:.1f} %): the twin keeps its inertia and the axis its log gains")
+
+
+def plant_of(path) -> tuple | None:
+    """The plant of a model file written by this stage as ``(G, delay_s)``, normalised torque -> rad/s; None for
+    a closed-loop model (the axis had no plant). The plant through the known controller is the grey-box
+    ``K / (s (tau_s s + 1))`` with its transport delay (:func:`rotorlab.ident.flightlogs.identify.
+    rate_plant_structure`): taken continuous from its fitted parameters, so a delay that is not a whole number
+    of log samples stays exact (its discrete form holds it as a state at z = 0, which has no continuous twin)."""
+    G, delay_s, meta = load_model(path, whole_samples=False)
+    units = meta.get("units") or {}
+    if units.get((meta.get("input") or [""])[0]) != "1" or units.get((meta.get("output") or [""])[0]) != "rad/s":
+        return None
+    th = ((meta.get("settings") or {}).get("extra") or {}).get("params")
+    if th and {"K", "tau_s", "delay_s"} <= set(th):
+        return ct.ss(ct.tf([th["K"]], [th["tau_s"], 1.0, 0.0])), float(th["delay_s"])
+    return G, float(delay_s)
+
+
+def run(ctx: StageContext) -> dict:
+    opts = ctx.opts
+    res = identify_flight_log(opts.log, ctx.work / "models", holdout=ctx.settings["holdout"])
+    log = res.log
+    params, mapped = controller_params(log)
+    autopilot = opts.autopilot or log.autopilot
+    ap = autopilots.get(autopilot)
+    # the log's parameters completed by the autopilot's defaults (a log of another autopilot: its defaults alone)
+    given = {k: float(v) for k, v in params.items() if k in ap.TABLE} if autopilot == log.autopilot else {}
+    current = ap.TABLE.complete(given, fill_defaults=True, source=str(opts.log))
+    axes, notes = {}, []
+    for axis, models in res.models.items():
+        axes[axis] = {kind: {"vaf_holdout_pct": m.vaf_holdout, "method": m.model.method, "dt_s": m.dt,
+                             "input": m.input, "output": m.output,
+                             "holdout": [[w.start_s, w.stop_s] for w in m.split.holdout],
+                             "ident": [[w.start_s, w.stop_s] for w in m.split.ident],
+                             **({"params": m.extra["params"]} if "params" in m.extra else {})}
+                      for kind, m in models.items()}
+        axes[axis]["use"], why = usable_plant(axes[axis])
+        if why:
+            notes.append(f"{axis}: {why}")
+    return jsonable({"log": str(log.path), "format": log.format, "log_autopilot": log.autopilot,
+                     "version": log.version, "autopilot": autopilot, "loop_hz": ap.loop_hz(current),
+                     "airborne_s": log.airborne_time_s(), "airborne_source": log.airborne_source,
+                     "axes": axes, "log_params": current,
+                     "log_params_defaulted": sorted(k for k in current if k not in given),
+                     "mapped": [m.text() for m in mapped], "notes": list(log.notes) + list(res.notes) + notes})
+
+
+STAGE = Stage("identify", upstream=(), settings=("holdout",), run=run)
