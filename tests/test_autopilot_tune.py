@@ -353,3 +353,16 @@ def test_cli_px4_autotune_baseline_takes_the_files_rise_time(px4_400hz, tmp_path
                  "--out", str(tmp_path / "bad-out.params")]) == 2
     err = capsys.readouterr().err
     assert "MC_AT_RISE_TIME" in err and str(f) in err and "0.5" in err and "0.9" in err
+
+
+def test_gyro_filter_off_adds_no_lag_to_the_band_and_the_autotune_rule_runs():
+    """IMU_GYRO_CUTOFF = 0 switches PX4's gyro low-pass off (the 2016-17 logs carry it): the crossover band then
+    counts only delay and hold, the same as a cutoff at or above Nyquist and a higher band than a 30 Hz filter
+    gives; the autotune rule's model period is then its upper clamp, and the rule still gives gains."""
+    dt = 1 / 250
+    band = {c: crossover_band(G_PITCH, 0.028, dt, c) for c in (0.0, 125.0, 30.0)}
+    assert band[0.0] == band[125.0]
+    assert band[0.0][1] > band[30.0][1]
+    p = autopilots.px4.TABLE.defaults() | {"IMU_GYRO_CUTOFF": 0.0}
+    gains, rejected = T.px4_autotune_params({"pitch": T.axis_plant(G_PITCH, 0.028, dt)}, p)
+    assert not rejected and gains["MC_PITCHRATE_P"] > 0

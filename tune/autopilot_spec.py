@@ -87,7 +87,9 @@ def _lag_terms(G, delay_s, dt_s, cutoff_hz):
     G = lti.as_ss(G)
     if lti.is_discrete(G):
         G = lti.d2c_zoh(G)
-    tau = delay_s + dt_s / 2 + math.sqrt(2.0) / (2 * math.pi * cutoff_hz)
+    # a cutoff of 0 (or at or above Nyquist) switches the autopilot's filter off (filters.butter2_coeffs): no lag
+    filtered = 0.0 < cutoff_hz < 0.5 / dt_s
+    tau = delay_s + dt_s / 2 + (math.sqrt(2.0) / (2 * math.pi * cutoff_hz) if filtered else 0.0)
     poles = np.linalg.eigvals(np.asarray(G.A, float))
     return tau, poles[(poles.real < 0) & (np.abs(poles) >= 1.0 / (10.0 * tau))]
 
@@ -173,9 +175,11 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
         pm = math.degrees(2 * math.atan(disk / 2))
         table = "; ".join(f"{b}: disk {a.disk_alpha:.3f}, noise {a.noise_gain:.4g}, peak {a.dist_hinf:.4g}, "
                           f"low-frequency {lf[b]:.4g}" if a.stable else f"{b}: unstable" for b, a in an.items())
+        filt = (f"the {_fmt(cutoff)} Hz gyro filter" if 0.0 < cutoff < 0.5 / dt_s
+                else f"no gyro filter (cutoff {_fmt(cutoff)} Hz: off)")
         lines += [
             f"# ---- {axis}: delay {_fmt(delay_s)} s = {_fmt(delay_s / dt_s)} loop periods. Baselines: {table}.",
-            f"# Crossover band: the lag of delay, hold, the {_fmt(cutoff)} Hz gyro filter and the model's actuator "
+            f"# Crossover band: the lag of delay, hold, {filt} and the model's actuator "
             f"(fast) poles {_poles_text(G_rate, delay_s, dt_s, cutoff)} reaches {-90 - PHASE_LIMIT_DEG:g} deg beyond "
             f"the integrator at wc_max{band_why}: {hi:.4g} rad/s; wc_min = wc_max / {BAND_RATIO:g}.",
             "[[goal]]", f'axis = "{axis}"', 'type = "crossover"', 'loop = "u"',

@@ -65,18 +65,9 @@ def run(ctx: StageContext) -> dict:
     rejected = {}
     if ap.NAME == "px4":
         # PX4 autotune flies its excitation on the gains flown in the log; an axis it rejects keeps them
-        try:
-            gains, rejected = T.px4_autotune_params({a: p[0] for a, p in plants.items()}, current, seed=ctx.seed)
-            baselines["px4-autotune"] = {**current, **gains}
-        except ZeroDivisionError:  # its model period comes from IMU_GYRO_CUTOFF, and 0 (filter off) has none
-            rejected = {"all": "no PX4 autotune baseline: IMU_GYRO_CUTOFF = 0 (gyro filter off) gives its model "
-                               "no sample period"}
-    # the spec's crossover band counts the gyro filter's lag at its cutoff; a log flown with the filter off (0,
-    # the older laws whose gyro was filtered in its driver) is given the loop's Nyquist frequency there, the least
-    # lag a sampled gyro has (generic_spec divides by the cutoff); only the band reads it
-    cutoff = "IMU_GYRO_CUTOFF" if ap.NAME == "px4" else "INS_GYRO_FILTER"
-    band_params = {**current, cutoff: current[cutoff] or 0.5 / dt_s}
-    spec_text = generic_spec(ap, plants, dt_s, band_params, baselines, model=f"the flight log {ident['log']}")
+        gains, rejected = T.px4_autotune_params({a: p[0] for a, p in plants.items()}, current)
+        baselines["px4-autotune"] = {**current, **gains}
+    spec_text = generic_spec(ap, plants, dt_s, current, baselines, model=f"the flight log {ident['log']}")
     (ctx.work / "spec.toml").write_text(spec_text, encoding="utf-8")
     s = ctx.settings
     tasks = [{"spec": spec_text, "params": current, "axis": a, "plant": p[0], "starts": s["tune_starts"],
