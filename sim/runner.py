@@ -23,6 +23,7 @@ from rotorlab.sim.log import RunLog, write_run
 from rotorlab.sim.poses import PoseTrack
 from rotorlab.sim.simulator import Simulator, vehicle_mixer
 from rotorlab.vehicles import DEFAULT_VEHICLE, gains_path, load_vehicle, vehicle_provenance
+from rotorlab.vehicles.generic import baseline_gains
 
 # Standard log columns (flight-software units); the pitch channel is named as the papers name it.
 BASE_COLUMNS = {
@@ -65,6 +66,20 @@ def resolve_gains(vehicle, gains) -> GainSet | None:
         raise ConfigError("gains file not found", file=p)
     # the sets beside the vehicle's own file, never looked up by its name (rotorlab.vehicles.gains_dir)
     return load_gains(gains_path(vehicle, str(gains)))
+
+
+def _run_gains(vehicle, gains, controller) -> GainSet | None:
+    """The cascade gains of a run (:func:`resolve_gains`). Where an autopilot's laws fly the attitude, the
+    cascade is off (:func:`add_controllers`) and its gains are never read, so a vehicle with no gain set of its
+    own (an own vehicle from ``rotorlab vehicle new``, a calibrated twin) flies without one: the flight software
+    still holds a cascade, the hand-designed baseline of :func:`rotorlab.vehicles.generic.baseline_gains`."""
+    specs = controller if isinstance(controller, (list, tuple)) else [controller]
+    if gains is None and any(isinstance(s, AutopilotSpec) for s in specs):
+        try:
+            return resolve_gains(vehicle, None)
+        except ConfigError:
+            return baseline_gains(vehicle, name="idle (an autopilot flies)")
+    return resolve_gains(vehicle, gains)
 
 
 def make_flight_software(vehicle, gains: GainSet, setup: scenarios.Setup, dt: float | None = None,
@@ -213,7 +228,7 @@ def run_scenario(name: str, vehicle=DEFAULT_VEHICLE, *, scene: str | None = None
     n_ticks = check_duration(duration_s, control_dt_s, record_poses)
     if out is not None:  # before the simulation: a read-only folder must not cost the run
         atomic.check_writable_dir(out, "run folder")
-    gs = resolve_gains(v, gains)
+    gs = _run_gains(v, gains, controller)
     ctx = scenarios.Context(vehicle=v, scene=scene, gains=gs, seed=seed, duration_s=duration_s,
                             options=dict(options or {}), dt_s=control_dt_s)
     setup = mod.setup(ctx)

@@ -274,3 +274,19 @@ def test_calibration_of_a_quad_x_shares_one_motor_pole_and_delay():
     flat = dataclasses.replace(start, inertia_kgm2=(0.01, 0.01, 0.03))
     with pytest.raises(ConfigError, match="I_a \\+ I_b >= I_c"):
         calibrate_axes(flat, targets)
+
+
+def test_own_vehicle_without_gain_sets_flies_an_autopilot_and_refuses_the_cascade(tmp_path):
+    """A vehicle file with no gain set beside it (``vehicle new``, a calibrated twin): with PX4's laws flying the
+    attitude the cascade's gains are never read, so the run flies (and holds its hover); the built-in cascade
+    itself still needs a set and is refused with the field named."""
+    from rotorlab.sim.control.autopilot import AutopilotSpec
+
+    own = tmp_path / "own.toml"
+    own.write_text((VEHICLES_DIR / "x500" / "vehicle.toml").read_text().replace('name = "x500"', 'name = "own"', 1))
+    r = run_scenario("rest", str(own), scene="free-flight", duration_s=3.0, controller=AutopilotSpec.from_params("px4"))
+    assert r.stopped is None
+    assert max(abs(r.log["phi"]).max(), abs(r.log["theta"]).max()) < 1.0  # deg: the autopilot holds it level
+    with pytest.raises(ConfigError) as exc:
+        run_scenario("rest", str(own), scene="free-flight", duration_s=1.0)
+    assert "gains" in str(exc.value)
