@@ -169,8 +169,9 @@ def test_twin_ulog_yaw_plant_matches_the_truth_where_the_log_holds_it(px4_models
                                        "(58.7 Hz, damping 0.145) in the truth, where its gain is 0.23 and the "
                                        "log holds no information: MC_YAW_TQ_CUTOFF's 2 Hz low-pass leaves the "
                                        "input-driven rate 650 times below the noise in 55-62 Hz. The structure at "
-                                       "the twin's own physical values scores 0.19; with the mount above "
-                                       "Nyquist 0.005. PX4's 40 Hz gyro filter passes the mode, ArduPilot's 20 Hz "
+                                       "the twin's own physical values scores 0.19; the identified model scores "
+                                       "0.045 against the same twin's linearisation with its mount stiffened to "
+                                       "100-120 Hz. PX4's 40 Hz gyro filter passes the mode, ArduPilot's 20 Hz "
                                        "does not (DataFlash yaw 0.045)")
 def test_twin_ulog_yaw_plant_is_the_twins_true_linearisation(px4_models):
     models = px4_models.models["yaw"]
