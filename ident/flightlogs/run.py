@@ -124,7 +124,9 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
     """Identify every axis of ``axes`` in a flight log and write the results to ``out_dir``.
 
     Per axis: the closed loop (rate_sp -> rate), the plant (rate_out -> rate) where the log has the rate-loop
-    output, and the plant through the known controller where ``controller(log, axis)`` gives one. An axis whose
+    output, and the plant through the known controller where ``controller(log, axis)`` gives one (the axis's
+    structure of :mod:`~rotorlab.ident.flightlogs.plant_structures`, the log's gyro low-pass in it
+    (:func:`autopilot_gyro_filter`), yaw with the motors' lag and delay of the roll and pitch fits). An axis whose
     closed loop cannot be identified ends the run (DataError); a plant model that cannot be fitted is a note. Files:
     ``<axis>.json`` (the plant: through the controller where known, else direct; else the closed loop), one
     ``<axis>-<kind>.json`` per model, and ``report.html`` with its PNGs. Units are recorded in every model file.
