@@ -94,6 +94,10 @@ class GreyBoxModel:
         ``'Td'``), or a ``Param`` (added to ``params``).
     inputs, outputs : sequence of str, optional
         Signal names, for reports and model files.
+    output_filter : callable, optional
+        ``output_filter(dt) -> control.StateSpace``: a known discrete filter the measured output has been through
+        (an autopilot's gyro low-pass), at sample time ``dt``; :meth:`discretize` puts it after the ZOH plant, as
+        the filter runs on the sampled measurement (not a continuous filter inside the hold).
 
     Examples
     --------
@@ -103,7 +107,7 @@ class GreyBoxModel:
 
     def __init__(self, name: str, params: Sequence[Param], build: Callable[[dict], ct.StateSpace],
                  delay_s: float | str | Param = 0.0, inputs: Sequence[str] | None = None,
-                 outputs: Sequence[str] | None = None):
+                 outputs: Sequence[str] | None = None, output_filter: Callable[[float], ct.StateSpace] | None = None):
         params = list(params)
         if isinstance(delay_s, Param):
             params.append(delay_s)
@@ -122,6 +126,7 @@ class GreyBoxModel:
         self.delay = delay_s
         self.inputs = list(inputs) if inputs else None
         self.outputs = list(outputs) if outputs else None
+        self.output_filter = output_filter
 
     # -- parameter bookkeeping -------------------------------------------------------------------
     @property
@@ -156,7 +161,7 @@ class GreyBoxModel:
         if changes:
             raise KeyError(f"grey-box model '{self.name}' has no parameter(s) {sorted(changes)}; "
                            f"parameters: {self.names}")
-        return GreyBoxModel(self.name, new, self.build, self.delay, self.inputs, self.outputs)
+        return GreyBoxModel(self.name, new, self.build, self.delay, self.inputs, self.outputs, self.output_filter)
 
     def with_values(self, values: Mapping[str, float]) -> GreyBoxModel:
         return self.replace(**{k: float(v) for k, v in values.items()})
@@ -200,8 +205,15 @@ class GreyBoxModel:
         return float(self.delay)
 
     def discretize(self, dt: float, theta: Mapping[str, float] | None = None) -> ct.StateSpace:
-        """Exact ZOH model at ``dt`` with the (possibly fractional) delay; plant states first."""
-        return c2d_zoh_delay(self.ss(theta), dt, self.delay_s(theta))
+        """Exact ZOH model at ``dt`` with the (possibly fractional) delay, then the output filter; plant states
+        first."""
+        return self.filtered(c2d_zoh_delay(self.ss(theta), dt, self.delay_s(theta)))
+
+    def filtered(self, sysd: ct.StateSpace) -> ct.StateSpace:
+        """``sysd`` (discrete) followed by the output filter at its sample time; ``sysd`` when there is none."""
+        if self.output_filter is None:
+            return sysd
+        return ct.series(sysd, self.output_filter(float(sysd.dt)))
 
     def __repr__(self) -> str:
         ps = ", ".join(f"{p.name}={p.value:g}{' (fixed)' if p.fixed else ''}" for p in self.params)
@@ -289,7 +301,7 @@ class GreyBoxResult:
         """The fit as an ``IdentifiedModel`` at ``dt``: ZOH plant with the whole-sample part of the delay as
         ``delay`` samples; a fractional remainder stays inside ``sys`` (ZOH with input delay)."""
         d = int(np.floor(self.delay_s / self.dt + 1e-9))
-        sysd = c2d_zoh_delay(self.sys, self.dt, self.delay_s - d * self.dt)
+        sysd = self.model.filtered(c2d_zoh_delay(self.sys, self.dt, self.delay_s - d * self.dt))
         return IdentifiedModel(sys=sysd, delay=d, method="oe", settings={"structure": self.model.name},
                                extra={"params": dict(self.params), "ci95": dict(self.ci95),
                                       "fit_vaf": self.fit_vaf.tolist()})

@@ -45,7 +45,7 @@ FORMATS = {".ulg": ("ulog", "px4"), ".bin": ("dataflash", "ardupilot")}
 #: the log's clock at the twin's t = 0, us (a real log starts at boot, never at 0)
 T0_US = 1_000_000
 #: the parameter of each autopilot's gyro low-pass, Hz: its logged rate is the filtered gyro its rate law flies on
-GYRO_CUTOFF_PARAM = {"px4": "IMU_GYRO_CUTOFF", "ardupilot": "INS_GYRO_FILTER"}
+GYRO_CUTOFF_PARAM = {name: autopilots.get(name).GYRO_FILTER_PARAM for name in ("px4", "ardupilot")}
 _D2R = math.pi / 180.0
 _AXES = ("roll", "pitch", "yaw")
 # PX4 autotune_attitude_control_status.state before v1.17 (msg/AutotuneAttitudeControlStatus.msg)

@@ -19,11 +19,12 @@ from rotorlab.errors import DataError
 from rotorlab.lti import as_ss, is_discrete
 
 from ..delay import estimate_delay
-from ..greybox import GreyBoxModel, Param, _closed_loop, lift_interpolated, oe_fit_closed_loop, simulate_closed_loop
+from ..greybox import GreyBoxModel, _closed_loop, lift_interpolated, oe_fit_closed_loop, simulate_closed_loop
 from ..methods import METHODS
 from ..metrics import simulate, vaf
 from ..model import IdentifiedModel
 from .flightlog import Record
+from .plant_structures import plant_structure, rate_plant_structure
 from .windows import Split
 
 __all__ = ["AxisModel", "CANDIDATES", "FALLBACK", "MAX_FIT_SAMPLES", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
@@ -252,26 +253,6 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
                      rec.dt, split, v, tried, pred)
 
 
-def rate_plant_structure(K: float = 100.0, tau_s: float = 0.03, delay_s: float = 0.005) -> GreyBoxModel:
-    """Rate plant of one multirotor axis: ``K e^(-s delay_s) / (s (tau_s s + 1))``.
-
-    The normalised rate-loop output commands a torque through the motors' lag ``tau_s``; the body integrates
-    torque / inertia to rate. ``K`` in (rad/s^2) per unit output.
-
-    Examples
-    --------
-    >>> rate_plant_structure().names
-    ['K', 'tau_s', 'delay_s']
-    """
-    params = [Param("K", K, 1e-3, 1e6, "rad/s^2"), Param("tau_s", tau_s, 1e-3, 1.0, "s"),
-              Param("delay_s", delay_s, 0.0, 0.1, "s")]
-
-    def build(th):
-        return ct.ss(ct.tf([th["K"]], [th["tau_s"], 1.0, 0.0]))
-
-    return GreyBoxModel("rate-plant", params, build, delay_s="delay_s", inputs=["rate_out"], outputs=["rate"])
-
-
 def _d2c_tustin(sysd: ct.StateSpace) -> ct.StateSpace:
     """The continuous system whose Tustin discretisation at ``sysd.dt`` is ``sysd`` (exact inverse).
 
@@ -332,7 +313,8 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
 
     The loop ``rate_out = C [rate_sp; rate]`` (a two-input controller: set-point and measured rate, the PX4
     and ArduPilot form with derivative on the measurement and feed-forward) or ``rate_out = C (rate_sp - rate)``
-    (one input) is simulated with the plant ``structure`` (default :func:`rate_plant_structure`) and the plant
+    (one input) is simulated with the plant ``structure`` (default: the axis's,
+    :func:`rotorlab.ident.flightlogs.plant_structures.plant_structure`) and the plant
     parameters fitted to the measured rate (``oe_fit_closed_loop``, initial state estimated) on the longest
     identification window. A log written at least 1.5 times slower than a discrete controller's loop is
     simulated at the loop rate between its samples (:func:`loop_substeps` steps per sample, the set-point
@@ -356,7 +338,7 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
     >>> res = identify_plant_indirect(rec, split, controller_lti)  # doctest: +SKIP
     >>> res.extra["params"]  # doctest: +SKIP
     """
-    structure = structure or rate_plant_structure()
+    structure = structure or plant_structure(rec.axis)
     sub = loop_substeps(controller_lti, rec.dt)
     K = controller_at(controller_lti, rec.dt / sub)
     runs = window_runs(rec, split.ident, MIN_SAMPLES)

@@ -15,9 +15,11 @@ from . import read_flight_log
 from .flightlog import FlightLog
 from .identify import AxisModel, identify_direct, identify_plant_indirect
 from .names import AXES
+from .plant_structures import MOTOR_PARAMS, SHARES_MOTORS, plant_structure
 from .windows import select_windows
 
-__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "controller_params", "MAX_IDENT_HZ"]
+__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "autopilot_gyro_filter", "controller_params",
+           "MAX_IDENT_HZ"]
 
 # The identification rate of a log logged faster (default ``rate_hz``): the rate loop's informative band ends near
 # 15-30 Hz, so 250 Hz keeps 8x margin; a 1 kHz log identified at 1 kHz costs 4x the samples and far more in the
@@ -77,13 +79,54 @@ def autopilot_controller(log: FlightLog, axis: str):
                         f"controller of the {axis} axis needs it for the plant through the known controller") from None
 
 
+def autopilot_gyro_filter(log: FlightLog):
+    """``dt -> control.StateSpace``: the autopilot's gyro low-pass (``GYRO_FILTER_PARAM`` of its
+    ``rotorlab.autopilots`` module, from the log's parameters, older names mapped) at sample time ``dt``, the filter
+    the logged rate has been through; ``None`` where ``rotorlab.autopilots`` is not installed or the log does not
+    hold the parameter. A cutoff of 0 (off, or a legacy log whose driver filtered the gyro) is no filter.
+
+    Examples
+    --------
+    >>> F = autopilot_gyro_filter(read_flight_log("flight.ulg"))  # doctest: +SKIP
+    >>> F(0.004).nstates  # doctest: +SKIP
+    2
+    """
+    if importlib.util.find_spec("rotorlab.autopilots") is None:
+        return None
+    from rotorlab import autopilots
+    from rotorlab.autopilots import filters
+
+    params, _ = controller_params(log)
+    name = autopilots.get(log.autopilot).GYRO_FILTER_PARAM
+    if name not in params:
+        return None
+    cutoff_hz = float(params[name])
+    return lambda dt: filters.butter2_ss(1.0 / dt, cutoff_hz)
+
+
+def _motors(res: FlightLogResult, axis: str) -> dict | None:
+    """The motors' lag and delay for ``axis``'s structure: the mean over the axes it shares them with
+    (:data:`~.plant_structures.SHARES_MOTORS`) that this run fitted through the controller; ``None`` (estimated on
+    ``axis`` itself, with a note) where there are none."""
+    fitted = [res.models[a]["plant-indirect"].extra["params"] for a in SHARES_MOTORS.get(axis, ())
+              if "plant-indirect" in res.models.get(a, {})]
+    if not fitted:
+        if axis in SHARES_MOTORS:
+            res.notes.append(f"{axis}: motor lag and delay estimated on {axis} alone (identify "
+                             f"{' and '.join(SHARES_MOTORS[axis])} with it to take them from there)")
+        return None
+    return {k: float(np.mean([p[k] for p in fitted])) for k in MOTOR_PARAMS}
+
+
 def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: float = 0.4, rate_hz=None,
                         allow_truncated: bool = False, controller=autopilot_controller,
                         report: bool = True) -> FlightLogResult:
     """Identify every axis of ``axes`` in a flight log and write the results to ``out_dir``.
 
     Per axis: the closed loop (rate_sp -> rate), the plant (rate_out -> rate) where the log has the rate-loop
-    output, and the plant through the known controller where ``controller(log, axis)`` gives one. An axis whose
+    output, and the plant through the known controller where ``controller(log, axis)`` gives one (the axis's
+    structure of :mod:`~rotorlab.ident.flightlogs.plant_structures`, the log's gyro low-pass in it
+    (:func:`autopilot_gyro_filter`), yaw with the motors' lag and delay of the roll and pitch fits). An axis whose
     closed loop cannot be identified ends the run (DataError); a plant model that cannot be fitted is a note. Files:
     ``<axis>.json`` (the plant: through the controller where known, else direct; else the closed loop), one
     ``<axis>-<kind>.json`` per model, and ``report.html`` with its PNGs. Units are recorded in every model file.
@@ -130,6 +173,8 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
     if missing:
         raise DataError(f"{log.path}: no rate set-point and measured rate for {', '.join(missing)}; the log has "
                         f"{', '.join(log.axes) or 'none'}")
+    # roll and pitch first: yaw takes their motors' lag and delay (plant_structures.SHARES_MOTORS)
+    axes.sort(key=lambda a: AXES.index(a) if a in AXES else len(AXES))
     for axis in axes:
         # each model on the signals it needs at their own rate: a slow rate-loop output (PX4 2016 logged
         # actuator_controls_0 at half the set-point's rate) must not slow the closed loop's record down
@@ -159,7 +204,8 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
         C = controller(log, axis) if controller is not None else None
         if C is not None:
             try:
-                models["plant-indirect"] = identify_plant_indirect(rec, split_cl, C)
+                models["plant-indirect"] = identify_plant_indirect(
+                    rec, split_cl, C, plant_structure(axis, autopilot_gyro_filter(log), _motors(res, axis)))
                 models["plant-indirect"].extra["controller_params_mapped"] = [m.text() for m in mapped]
             except (DataError, ValueError) as exc:
                 res.notes.append(f"{axis}: no plant through the controller: {exc}")

@@ -49,6 +49,7 @@ NAME = "ardupilot"
 FILE_FORMAT = "parm"  # Mission Planner .parm
 AXES = ("roll", "pitch", "yaw")
 LOOP_RATE_PARAM = "SCHED_LOOP_RATE"  # the rate-loop rate, Hz
+GYRO_FILTER_PARAM = "INS_GYRO_FILTER"  # the gyro low-pass the rate loop flies on (and RATE logs), Hz
 
 _MULTI = "ArduCopter 4.x AC_AttitudeControl_Multi.cpp/.h"
 _ATT = "ArduCopter 4.x AC_AttitudeControl.cpp/.h"

@@ -47,6 +47,7 @@ NAME = "px4"
 FILE_FORMAT = "qgc"  # QGroundControl .params
 AXES = ("roll", "pitch", "yaw")
 LOOP_RATE_PARAM = "IMU_GYRO_RATEMAX"  # the rate-loop rate, Hz
+GYRO_FILTER_PARAM = "IMU_GYRO_CUTOFF"  # the gyro low-pass the rate loop flies on (and the log holds), Hz
 
 _RC = "PX4 mc_rate_control_params.yaml @e87d6afa"
 _AC = "PX4 mc_att_control_params.yaml @e87d6afa"

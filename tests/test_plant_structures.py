@@ -1,0 +1,68 @@
+"""The flight-log rate plant structures (ident/flightlogs/plant_structures.py): every registered axis against its
+formula written out by hand, the autopilot's gyro low-pass as the exact discrete filter after the ZOH plant, and
+the motors' parameters shared into yaw."""
+
+import control as ct
+import numpy as np
+import pytest
+
+from rotorlab.autopilots.filters import butter2_ss
+from rotorlab.ident.flightlogs.plant_structures import MOTOR_PARAMS, STRUCTURES, plant_structure
+from rotorlab.ident.greybox import oe_fit, simulate_greybox
+from rotorlab.lti import c2d_zoh_delay
+
+DT = 0.004
+# per structure: parameters away from the defaults and the continuous response written by hand, delay apart
+FORMULAS = {
+    "rate-plant": ({"K": 107.0, "tau_s": 0.037},
+                   lambda s, p: p["K"] / (s * (p["tau_s"] * s + 1))),
+    # the yaw derivation of the module docstring: drag-torque gain, spin-up zero, in-plane drag pole, motor lag
+    "yaw-rate-plant": ({"K": 7.5, "z_rad_s": 2.434, "a_rad_s": 0.41, "tau_s": 0.037},
+                       lambda s, p: p["K"] * (1 + s / p["z_rad_s"]) / ((p["tau_s"] * s + 1) * (s + p["a_rad_s"]))),
+}
+
+
+@pytest.mark.parametrize("axis", sorted(STRUCTURES))
+def test_every_axis_structure_is_its_formula(axis):
+    m = plant_structure(axis)
+    assert m.name in FORMULAS, f"structure {m.name} of {axis} has no hand-written formula in this test"
+    theta, formula = FORMULAS[m.name]
+    sys = m.ss(theta)
+    for w in (0.3, 2.0, 27.0, 300.0):
+        assert complex(ct.evalfr(sys, 1j * w)) == pytest.approx(formula(1j * w, theta), rel=1e-9)
+    assert set(MOTOR_PARAMS) <= set(m.names)
+
+
+def test_yaw_is_not_the_roll_shape():
+    assert plant_structure("yaw").name == "yaw-rate-plant"
+    assert plant_structure("roll").name == plant_structure("pitch").name == "rate-plant"
+    with pytest.raises(KeyError, match="no rate plant structure"):
+        plant_structure("collective")
+
+
+def test_gyro_filter_follows_the_zoh_plant_and_stays_in_the_fit():
+    F = lambda dt: butter2_ss(1.0 / dt, 40.0)  # noqa: E731 - PX4's IMU_GYRO_CUTOFF default
+    m = plant_structure("yaw", F)
+    theta = {**FORMULAS["yaw-rate-plant"][0], "delay_s": 0.026}
+    want = ct.series(c2d_zoh_delay(plant_structure("yaw").ss(theta), DT, 0.026), butter2_ss(1 / DT, 40.0))
+    for w in (1.0, 100.0, 350.0):
+        zw = np.exp(1j * w * DT)
+        assert complex(ct.evalfr(m.discretize(DT, theta), zw)) == pytest.approx(complex(ct.evalfr(want, zw)),
+                                                                                rel=1e-9)
+    # noise-free data through the filtered structure: the fit returns the parameters and its discrete model
+    # keeps the filter
+    u = np.random.default_rng(0).standard_normal(3000)
+    y = simulate_greybox(m, u, DT, theta)
+    res = oe_fit(m, u, y, DT, {"K": 6.0, "z_rad_s": 2.0, "a_rad_s": 0.3, "tau_s": 0.03, "delay_s": 0.02})
+    for k, v in theta.items():
+        assert res.params[k] == pytest.approx(v, rel=1e-4)
+    got = res.discrete().with_delay()
+    for w in (1.0, 100.0, 350.0):
+        zw = np.exp(1j * w * DT)
+        assert complex(ct.evalfr(got, zw)) == pytest.approx(complex(ct.evalfr(want, zw)), rel=1e-4)
+
+
+def test_motors_given_are_fixed():
+    m = plant_structure("yaw", motors={"tau_s": 0.0368, "delay_s": 0.0266})
+    assert m.free == ["K", "z_rad_s", "a_rad_s"]
+    assert m.values()["tau_s"] == 0.0368 and m.values()["delay_s"] == 0.0266
