@@ -15,7 +15,7 @@ from . import read_flight_log
 from .flightlog import FlightLog
 from .identify import AxisModel, identify_direct, identify_plant_indirect
 from .names import AXES
-from .windows import select_windows
+from .windows import MIN_RMS, holdout_excitation, select_windows
 
 __all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "controller_params", "MAX_IDENT_HZ"]
 
@@ -145,6 +145,11 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
                 raise
             res.notes.append(f"{axis}: not identified: {exc}")
             continue
+        rms, coh = holdout_excitation(split_cl)
+        if rms < MIN_RMS["rate_sp"]:
+            res.notes.append(f"{axis}: the held-out part is not excited (rate_sp RMS {rms:.3g} rad/s in the band, "
+                             f"under {MIN_RMS['rate_sp']:g}; coherence {coh:.2f}): its VAF scores the noise and "
+                             "disturbances, not the model; hold out an excited part (--holdout, --window)")
         if has_out:
             # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
             # does not excite enough is a note, not the end of the run
@@ -193,6 +198,8 @@ def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
              "time_base": "s (log stamps converted from microseconds)",
              "windows": [[w.start_s, w.stop_s, w.reason] for w in m.split.ident],
              "holdout": [[w.start_s, w.stop_s] for w in m.split.holdout],
+             "holdout_excitation": dict(zip(("rms", "coherence"),
+                                            (None if np.isnan(v) else v for v in holdout_excitation(m.split)))),
              "vaf_holdout": m.vaf_holdout, "tried": [[t, None if np.isnan(v) else v] for t, v in m.tried],
              **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {}),
              **({"controller_params_mapped": m.extra["controller_params_mapped"]}
