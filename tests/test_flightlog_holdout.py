@@ -43,9 +43,11 @@ def test_held_out_windows_carry_the_set_point_rms_in_the_band(flight, tmp_path):
 
 def test_an_unexcited_held_out_part_is_named(flight, tmp_path):
     quiet = identify_flight_log(_ulog(flight, tmp_path / "q.ulg", autotune=False), tmp_path / "q", ["roll"],
-                                controller=None, report=False)
+                                controller=None)
     note = [n for n in quiet.notes if n.startswith("roll: the held-out part is not excited")]
     assert note, quiet.notes
+    page = (tmp_path / "q" / "report.html").read_text()
+    assert "the held-out part is not excited" in page and "rate_sp RMS" in page
     doc = json.loads((tmp_path / "q" / "roll-closed-loop.json").read_text())
     assert doc["settings"]["extra"]["holdout_excitation"]["rms"] < MIN_RMS["rate_sp"]
     excited = identify_flight_log(_ulog(flight, tmp_path / "e.ulg"), tmp_path / "e", ["roll"], controller=None,

@@ -12,6 +12,8 @@ from scipy import signal as sig
 
 from rotorlab.atomic import atomic_path, write_text
 
+from .windows import holdout_excitation
+
 __all__ = ["write_report", "plot_points", "PLOT_POINTS"]
 
 # Points per trace in a time plot: a 1000-pixel-wide figure shows no more; a 1 kHz gyro over ten minutes is 600 000
@@ -144,6 +146,11 @@ def write_report(res, out: Path) -> list[Path]:
         for kind, m in models.items():
             wins = "<br>".join(f"{w.start_s:.2f}-{w.stop_s:.2f} s: {e(w.reason)}" for w in m.split.ident)
             held = ", ".join(f"{w.start_s:.2f}-{w.stop_s:.2f} s" for w in m.split.holdout)
+            rms, coh = holdout_excitation(m.split)
+            if np.isfinite(rms):
+                # the plant through the controller is scored on the closed loop's windows: driven by rate_sp
+                u_name = "rate_sp" if kind == "plant-indirect" else m.input
+                held += f"<br>{u_name} RMS {rms:.3g} in the band, coherence {coh:.2f}"
             params = ", ".join(f"{k} = {v:.4g}" for k, v in m.extra.get("params", {}).items())
             desc = f"{e(m.model.method)} {e(str({k: v for k, v in m.model.settings.items() if k != 'dt'}))}"
             rows.append(f"<tr><td>{axis}</td><td>{kind}</td><td>{m.input} ({m.units.get(m.input, '')}) -> "
