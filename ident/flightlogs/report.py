@@ -150,7 +150,7 @@ def write_report(res, out: Path) -> list[Path]:
             if np.isfinite(rms):
                 # the plant through the controller is scored on the closed loop's windows: driven by rate_sp
                 u_name = "rate_sp" if kind == "plant-indirect" else m.input
-                held += f"<br>{u_name} RMS {rms:.3g} in the band, coherence {coh:.2f}"
+                held += f"<br>{u_name} RMS {rms:.3g} (detrended), coherence {coh:.2f} in the band"
             params = ", ".join(f"{k} = {v:.4g}" for k, v in m.extra.get("params", {}).items())
             desc = f"{e(m.model.method)} {e(str({k: v for k, v in m.model.settings.items() if k != 'dt'}))}"
             rows.append(f"<tr><td>{axis}</td><td>{kind}</td><td>{m.input} ({m.units.get(m.input, '')}) -> "

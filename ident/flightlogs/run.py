@@ -147,9 +147,9 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
             continue
         rms, coh = holdout_excitation(split_cl)
         if rms < MIN_RMS["rate_sp"]:
-            res.notes.append(f"{axis}: the held-out part is not excited (rate_sp RMS {rms:.3g} rad/s in the band, "
-                             f"under {MIN_RMS['rate_sp']:g}; coherence {coh:.2f}): its VAF scores the noise and "
-                             "disturbances, not the model; hold out an excited part (--holdout, --window)")
+            res.notes.append(f"{axis}: the held-out part is not excited (rate_sp RMS {rms:.3g} rad/s, detrended, "
+                             f"under {MIN_RMS['rate_sp']:g}; coherence {coh:.2f} in the band): its VAF scores the noise "
+                             "and disturbances, not the model; hold out an excited part (--holdout, --window)")
         if has_out:
             # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
             # does not excite enough is a note, not the end of the run

@@ -32,7 +32,8 @@ GROUND_GUARD_S = 1.0
 class Window:
     """A time window ``[start_s, stop_s)`` with why it was chosen and its excitation figures.
 
-    ``power`` is the input's mean power in the band (unit^2), ``coherence`` the mean magnitude-squared
+    ``power`` is the input's mean power in the band (unit^2; for a held-out window the variance of the input with
+    its linear trend removed, all of what the model is scored on), ``coherence`` the mean magnitude-squared
     coherence input -> output in the band (NaN where not computed, e.g. a user's window)."""
 
     start_s: float
@@ -154,18 +155,22 @@ def split_windows(log: FlightLog, rec: Record, holdout: float = 0.4) -> tuple[li
 
 
 def _held_window(iv, rec: Record, u_name: str, y_name: str, band, reason: str) -> Window:
-    """A held-out window with its input's power and coherence in the band (NaN where under 32 samples): a VAF
-    on held-out data that carries no excitation scores noise, and the report says so."""
+    """A held-out window with its input's power (the variance of the window, linear trend removed) and the mean
+    coherence in the band; NaN where under 32 samples. A VAF on held-out data that carries no input scores noise
+    and disturbances, and the report says so. The power is not limited to the band: a model is
+    scored on all of its input, and a slow axis (yaw, heading hold) lives below the band's low edge."""
     idx = np.flatnonzero((rec.t_s >= iv.start_s) & (rec.t_s < iv.stop_s))
     if len(idx) < 32:
         return Window(iv.start_s, iv.stop_s, reason)
-    p, c = band_stats(rec.data[u_name][idx], rec.data[y_name][idx], rec.dt, band)
-    return Window(iv.start_s, iv.stop_s, reason, p, c)
+    u, y = rec.data[u_name][idx], rec.data[y_name][idx]
+    _, c = band_stats(u, y, rec.dt, band)
+    # the record is resampled below the band's top already; Welch's ~1 s segments would drop what is slower
+    return Window(iv.start_s, iv.stop_s, reason, float(np.var(sig.detrend(u))), c)
 
 
 def holdout_excitation(split: Split) -> tuple[float, float]:
-    """(input RMS in the band, mean coherence) over the held-out windows, weighted by their durations; NaN where
-    no held-out window was long enough to measure.
+    """(input RMS, detrended, mean coherence in the band) over the held-out windows, weighted by
+    their durations; NaN where no held-out window was long enough to measure.
 
     Examples
     --------
