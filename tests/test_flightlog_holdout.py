@@ -1,16 +1,18 @@
 """What a held-out score means: the held-out windows carry their excitation figures, a run whose held-out part
-is not excited says so (its VAF scores noise, not the model), and the report's time plots keep every extreme
-of a long high-rate log while plotting a bounded number of points. Logs made by tests/flightlog_sim.py."""
+is not excited says so (its VAF scores noise, not the model), a rate set-point that is the angle loop's output
+(computed from the measured attitude, as ArduCopter's STABILIZE logs it) is named with the angle gain recovered,
+and the report's time plots keep every extreme of a long high-rate log while plotting a bounded number of
+points. Logs made by tests/flightlog_sim.py."""
 
 import json
 
 import numpy as np
 import pytest
-from flightlog_sim import fly, px4_params, px4_topics
+from flightlog_sim import LOOP_HZ, fly, px4_params, px4_topics
 
 from rotorlab.ident.flightlogs import read_flight_log
 from rotorlab.ident.flightlogs.report import plot_points
-from rotorlab.ident.flightlogs.run import identify_flight_log
+from rotorlab.ident.flightlogs.run import ANGLE_LOOP_VAF, identify_flight_log
 from rotorlab.ident.flightlogs.windows import MIN_RMS, holdout_excitation, select_windows
 from rotorlab.ident.flightlogs.writers import write_ulog
 
@@ -73,3 +75,38 @@ def test_plot_points_keep_every_extreme_in_time_order():
     assert xp.max() == x.max() and xp.min() == x.min()
     short = np.arange(100.0)
     assert plot_points(short, short)[0] is short  # a short series as is
+
+
+ANGLE_P = 6.5  # 1/s, the angle loop's gain of the angle-mode log
+
+
+def _angle_mode_ulog(f, path, angle_mode: bool):
+    """The flight with the attitude (the roll gyro integrated) and an attitude set-point. ``angle_mode``: the set-point
+    is the one from which the angle law ``rate_sp = ANGLE_P (att_sp - att)`` gives the logged rate set-point;
+    else level (an acro or autotune flight, where the rate set-point is the pilot's or the autotune's)."""
+    topics = px4_topics(f)
+    t_us = topics["vehicle_rates_setpoint"]["timestamp"]
+    sub = len(f.t_gyro_s) // len(f.t_loop_s)
+    att = np.cumsum(f.rate_gyro["roll"][::sub]) / LOOP_HZ
+    att_sp = att + f.rate_sp["roll"] / ANGLE_P if angle_mode else np.zeros_like(att)
+    z = np.zeros(len(att), np.float32)
+    topics["vehicle_attitude"] = {"timestamp": t_us, "roll": att.astype(np.float32), "pitch": z, "yaw": z}
+    topics["vehicle_attitude_setpoint"] = {"timestamp": t_us, "roll_body": att_sp.astype(np.float32),
+                                           "pitch_body": z, "yaw_body": z}
+    return write_ulog(path, topics, {**px4_params(), "MC_ROLL_P": ANGLE_P})
+
+
+def test_a_rate_set_point_from_the_angle_loop_is_named(flight, tmp_path):
+    res = identify_flight_log(_angle_mode_ulog(flight, tmp_path / "a.ulg", True), tmp_path / "a", ["roll"],
+                              controller=None, report=False)
+    share = res.models["roll"]["closed-loop"].extra["angle_loop"]
+    assert share["vaf"] > 99.0 and share["P"] == pytest.approx(ANGLE_P, rel=0.01) and abs(share["F"]) < 0.05
+    assert share["P_log"] == ANGLE_P
+    assert [n for n in res.notes if n.startswith("roll: the logged rate set-point is the angle loop's output")]
+    doc = json.loads((tmp_path / "a" / "roll-closed-loop.json").read_text())
+    assert doc["settings"]["extra"]["angle_loop"]["P"] == pytest.approx(ANGLE_P, rel=0.01)
+    # the autotune's square wave on the rate set-point is no function of the attitude: no note
+    res = identify_flight_log(_angle_mode_ulog(flight, tmp_path / "b.ulg", False), tmp_path / "b", ["roll"],
+                              controller=None, report=False)
+    assert res.models["roll"]["closed-loop"].extra["angle_loop"]["vaf"] < ANGLE_LOOP_VAF
+    assert not [n for n in res.notes if "angle loop's output" in n]

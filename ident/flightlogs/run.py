@@ -17,12 +17,17 @@ from .identify import AxisModel, identify_direct, identify_plant_indirect
 from .names import AXES
 from .windows import MIN_RMS, holdout_excitation, select_windows
 
-__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "controller_params", "MAX_IDENT_HZ"]
+__all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "controller_params", "MAX_IDENT_HZ",
+           "angle_loop_share", "ANGLE_LOOP_VAF"]
 
 # The identification rate of a log logged faster (default ``rate_hz``): the rate loop's informative band ends near
 # 15-30 Hz, so 250 Hz keeps 8x margin; a 1 kHz log identified at 1 kHz costs 4x the samples and far more in the
 # subspace fits for nothing. A loop faster than the log's rate is simulated between samples (identify_plant_indirect)
 MAX_IDENT_HZ = 250.0
+# A rate set-point the angle law explains to this VAF (%) from the measured attitude is the angle loop's output: on
+# the ArduCopter development log (STABILIZE) 98-99 %; a pilot's or an autotune's rate input is not a function of
+# the attitude
+ANGLE_LOOP_VAF = 90.0
 
 
 @dataclass
@@ -150,6 +155,17 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
             res.notes.append(f"{axis}: the held-out part is not excited (rate_sp RMS {rms:.3g} rad/s, detrended, "
                              f"under {MIN_RMS['rate_sp']:g}; coherence {coh:.2f} in the band): its VAF scores the noise "
                              "and disturbances, not the model; hold out an excited part (--holdout, --window)")
+        share = angle_loop_share(log, axis, rec, split_cl.holdout)
+        if share is not None:
+            models["closed-loop"].extra["angle_loop"] = share
+            if share["vaf"] >= ANGLE_LOOP_VAF:
+                law = f" (the log's angle P: {share['P_log']:.3g})" if "P_log" in share else ""
+                res.notes.append(
+                    f"{axis}: the logged rate set-point is the angle loop's output: rate_sp = {share['P']:.3g} "
+                    f"(att_sp - att) + {share['F']:.2f} d(att_sp)/dt explains {share['vaf']:.1f} % of it on the "
+                    f"held-out part{law}. It is computed from the attitude that integrates the rate, so the "
+                    "closed-loop model (rate_sp -> rate) fits that feedback as well as the rate loop, and a plant "
+                    "closed with the rate controller alone cannot reproduce it")
         if has_out:
             # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
             # does not excite enough is a note, not the end of the run
@@ -185,6 +201,55 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
     return res
 
 
+def angle_loop_share(log: FlightLog, axis: str, rec, windows) -> dict | None:
+    """How much of the logged rate set-point the angle loop explains: ``rate_sp = P (att_sp - att) + F
+    d(att_sp)/dt`` (the angle error wrapped to +-pi, the set-point's rate by backward difference: the angle P and
+    feed-forward of ArduPilot and PX4) fitted by least squares on ``windows`` of the log at ``rec``'s rate, each
+    about its mean. ``None`` where the log has no ``att`` or ``att_sp`` for ``axis``.
+
+    Returns
+    -------
+    dict
+        ``vaf`` (%), ``P`` (1/s), ``F`` (1) and, where ``rotorlab.autopilots`` has the autopilot's angle law and
+        the log its parameters, ``P_log``: the angle P of the log's parameters.
+
+    Examples
+    --------
+    >>> share = angle_loop_share(log, "roll", rec, split.holdout)  # doctest: +SKIP
+    >>> share["vaf"], share["P"]  # doctest: +SKIP
+    """
+    if not {"att", "att_sp"} <= set(log.signals[axis]):
+        return None
+    r = log.record(axis, ("rate_sp", "att", "att_sp"), rate_hz=1.0 / rec.dt)
+    cols, target = [], []
+    for w in windows:
+        idx = np.flatnonzero((r.t_s >= w.start_s) & (r.t_s < w.stop_s))
+        if len(idx) < 32:
+            continue
+        sp = np.unwrap(r.data["att_sp"][idx])
+        err = np.angle(np.exp(1j * (r.data["att_sp"][idx] - r.data["att"][idx])))
+        ff = np.diff(sp, prepend=sp[0]) / r.dt
+        cols.append(np.column_stack([err - err.mean(), ff - ff.mean()]))
+        target.append(r.data["rate_sp"][idx] - r.data["rate_sp"][idx].mean())
+    if not cols:
+        return None
+    X, y = np.vstack(cols), np.concatenate(target)
+    if not np.var(y) > 0:
+        return None
+    theta = np.linalg.lstsq(X, y, rcond=None)[0]
+    out = {"vaf": float(max(0.0, 100.0 * (1.0 - np.var(y - X @ theta) / np.var(y)))), "P": float(theta[0]),
+           "F": float(theta[1])}
+    if importlib.util.find_spec("rotorlab.autopilots") is not None:
+        from rotorlab import autopilots
+
+        try:
+            law = autopilots.get(log.autopilot).attitude_controller_lti(controller_params(log)[0], axis, r.dt)
+            out["P_log"] = float(np.asarray(law.D)[0, 0])
+        except (KeyError, AttributeError, ValueError):
+            pass  # no angle law or parameter for it: the fitted P stands alone
+    return out
+
+
 def _record(log: FlightLog, axis: str, names, rate_hz):
     if rate_hz is None:
         rate_hz = min(MAX_IDENT_HZ, min(log.series(axis, n).rate_hz for n in names))
@@ -202,6 +267,7 @@ def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
                                             (None if np.isnan(v) else v for v in holdout_excitation(m.split)))),
              "vaf_holdout": m.vaf_holdout, "tried": [[t, None if np.isnan(v) else v] for t, v in m.tried],
              **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {}),
+             **({"angle_loop": m.extra["angle_loop"]} if "angle_loop" in m.extra else {}),
              **({"controller_params_mapped": m.extra["controller_params_mapped"]}
                 if "controller_params_mapped" in m.extra else {})}
     return save_model(path, m.model, vaf=[m.vaf_holdout], extra=extra, input=[m.input], output=[m.output],
