@@ -8,13 +8,14 @@ import json
 
 import numpy as np
 import pytest
-from flightlog_sim import LOOP_HZ, fly, px4_params, px4_topics
+from flightlog_sim import LOOP_HZ, controller, fly, px4_params, px4_topics, true_plant_d
 
 from rotorlab.ident.flightlogs import read_flight_log
 from rotorlab.ident.flightlogs.report import plot_points
 from rotorlab.ident.flightlogs.run import ANGLE_LOOP_VAF, identify_flight_log
 from rotorlab.ident.flightlogs.windows import MIN_RMS, holdout_excitation, select_windows
 from rotorlab.ident.flightlogs.writers import write_ulog
+from rotorlab.ident.nugap import nugap
 
 
 @pytest.fixture(scope="module")
@@ -110,3 +111,19 @@ def test_a_rate_set_point_from_the_angle_loop_is_named(flight, tmp_path):
                               controller=None, report=False)
     assert res.models["roll"]["closed-loop"].extra["angle_loop"]["vaf"] < ANGLE_LOOP_VAF
     assert not [n for n in res.notes if "angle loop's output" in n]
+
+
+def test_the_plant_through_the_angle_and_rate_controllers_is_the_truth(flight, tmp_path):
+    """An angle-mode log (the rate set-point the angle law's output): the plant fitted through the angle P and the
+    rate PID from the attitude set-point is the simulated plant, and closed again it predicts the held-out rate as
+    well as the closed loop identified directly from the attitude set-point."""
+    res = identify_flight_log(_angle_mode_ulog(flight, tmp_path / "a.ulg", True), tmp_path / "a", ["roll"],
+                              controller=lambda log, axis: controller(axis).lti(), report=False)
+    models = res.models["roll"]
+    m = models["plant-indirect-angle"]
+    assert m.extra["angle_p"] == ANGLE_P
+    assert m.extra["params"]["K"] == pytest.approx(400.0, rel=0.05)
+    assert nugap(m.model.with_delay(), true_plant_d("roll", m.dt)) < 0.05
+    assert m.vaf_holdout > 90.0
+    assert abs(m.vaf_holdout - models["closed-loop-angle"].vaf_holdout) < 5.0
+    assert (tmp_path / "a" / "roll-plant-indirect-angle.json").exists()

@@ -98,7 +98,7 @@ def _axis_figs(res, axis, out: Path) -> list[Path]:
     # excitation spectra and coherence over the identification windows
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3), constrained_layout=True)
     for kind, m in models.items():
-        if kind == "plant-indirect":
+        if kind.startswith("plant-indirect"):
             continue
         rec = log.record(axis, (m.input, m.output))
         idx = np.concatenate([np.flatnonzero((rec.t_s >= w.start_s) & (rec.t_s < w.stop_s)) for w in m.split.ident])
@@ -148,8 +148,8 @@ def write_report(res, out: Path) -> list[Path]:
             held = ", ".join(f"{w.start_s:.2f}-{w.stop_s:.2f} s" for w in m.split.holdout)
             rms, coh = holdout_excitation(m.split)
             if np.isfinite(rms):
-                # the plant through the controller is scored on the closed loop's windows: driven by rate_sp
-                u_name = "rate_sp" if kind == "plant-indirect" else m.input
+                # the plant through the controller is scored on its closed loop's windows and input
+                u_name = {"plant-indirect": "rate_sp", "plant-indirect-angle": "att_sp"}.get(kind, m.input)
                 held += f"<br>{u_name} RMS {rms:.3g} (detrended), coherence {coh:.2f} in the band"
             params = ", ".join(f"{k} = {v:.4g}" for k, v in m.extra.get("params", {}).items())
             desc = f"{e(m.model.method)} {e(str({k: v for k, v in m.model.settings.items() if k != 'dt'}))}"

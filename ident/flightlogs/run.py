@@ -4,7 +4,7 @@ the log report. ``rotorlab ident FLIGHT.ulg|FLIGHT.bin|CSV_DIR`` calls :func:`id
 from __future__ import annotations
 
 import importlib.util
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +13,7 @@ from rotorlab.errors import DataError
 
 from . import read_flight_log
 from .flightlog import FlightLog
-from .identify import AxisModel, identify_direct, identify_plant_indirect
+from .identify import AxisModel, identify_direct, identify_plant_indirect, identify_plant_through_angle_loop
 from .names import AXES
 from .windows import MIN_RMS, holdout_excitation, select_windows
 
@@ -186,6 +186,19 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
                 res.notes.append(f"{axis}: no plant through the controller: {exc}")
         else:
             res.notes.append(f"{axis}: plant through the known controller skipped (rotorlab.autopilots not installed)")
+        if C is not None and share is not None and share["vaf"] >= ANGLE_LOOP_VAF and "P_log" in share:
+            # the angle mode's input is the attitude set-point: the closed loop from it and the plant through the
+            # angle and rate controllers, the pair the indirect route compares when the rate set-point is fed back
+            try:
+                rec_a = _angle_record(log, axis, rec.dt)
+                split_a = select_windows(log, rec_a, "att_sp", "rate", holdout=holdout, override=windows, min_rms={})
+                models["closed-loop-angle"] = identify_direct(rec_a, split_a, "closed-loop-angle")
+                models["plant-indirect-angle"] = identify_plant_through_angle_loop(rec_a, split_a, C, share["P_log"],
+                                                                                   share["F"])
+                recs["closed-loop-angle"] = recs["plant-indirect-angle"] = rec_a
+            except (DataError, ValueError) as exc:
+                models.pop("closed-loop-angle", None)
+                res.notes.append(f"{axis}: no plant through the angle and rate controllers: {exc}")
         res.models[axis] = models
         for kind, m in models.items():
             res.files.append(_save(save_model, out / f"{axis}-{kind}.json", m, log, recs[kind]))
@@ -248,6 +261,15 @@ def angle_loop_share(log: FlightLog, axis: str, rec, windows) -> dict | None:
         except (KeyError, AttributeError, ValueError):
             pass  # no angle law or parameter for it: the fitted P stands alone
     return out
+
+
+def _angle_record(log: FlightLog, axis: str, dt: float):
+    """The attitude set-point, rate and attitude of ``axis`` at ``dt``, the angles continuous: the set-point
+    unwrapped, the attitude that set-point less the wrapped angle error (a yaw crossing +-pi stays one branch)."""
+    r = log.record(axis, ("att_sp", "rate", "att"), rate_hz=1.0 / dt)
+    sp = np.unwrap(r.data["att_sp"])
+    err = np.angle(np.exp(1j * (r.data["att_sp"] - r.data["att"])))
+    return replace(r, data={**r.data, "att_sp": sp, "att": sp - err})
 
 
 def _record(log: FlightLog, axis: str, names, rate_hz):
