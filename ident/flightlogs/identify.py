@@ -10,7 +10,7 @@ python-control LTI system, so the autopilot's law (``rotorlab.autopilots``) plug
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import control as ct
 import numpy as np
@@ -24,11 +24,12 @@ from ..methods import METHODS
 from ..metrics import simulate, vaf
 from ..model import IdentifiedModel
 from .flightlog import Record
-from .plant_structures import plant_structure, rate_plant_structure
+from .plant_structures import plant_structure, rate_angle_plant_structure, rate_plant_structure
 from .windows import Split
 
 __all__ = ["AxisModel", "CANDIDATES", "FALLBACK", "MAX_FIT_SAMPLES", "identify_direct", "identify_plant_indirect", "rate_plant_structure",
-           "controller_at", "loop_substeps", "holdout_prediction", "window_runs"]
+           "controller_at", "loop_substeps", "holdout_prediction", "window_runs", "rate_angle_plant_structure",
+           "angle_cascade", "identify_plant_through_angle_loop"]
 
 # (method, settings) tried by the direct fits, per kind. Orders 2-4 cover a rate loop (integrator, motor lag,
 # filters). The plant is seen in closed loop, where only PBSID (predictor-based) is consistent: past-input
@@ -50,9 +51,12 @@ CANDIDATES = {
         ("pbsid", {"order": 4, "past": 40, "future": 20}),
     ),
 }
+# the closed loop from the attitude set-point (an angle mode's input) takes the closed loop's candidates
+CANDIDATES["closed-loop-angle"] = CANDIDATES["closed-loop"]
 # tried when no candidate of CANDIDATES fits (windows too short for PBSID's 40-sample past)
 FALLBACK = {
     "closed-loop": (),
+    "closed-loop-angle": (),
     "plant": (
         ("pbsid", {"order": 2, "past": 20, "future": 10}),
         ("pbsid", {"order": 4, "past": 20, "future": 10}),
@@ -64,8 +68,8 @@ MIN_SAMPLES = 100
 # log's further windows add time, not information (the held-out score always uses every held-out window)
 MAX_FIT_SAMPLES = 5000
 # a closed rate loop is stable; a plant may integrate (rate from torque), so one pole may sit on the unit circle
-MAX_POLE_RADIUS = {"closed-loop": 1.0 - 1e-9, "plant": 1.0 + 1e-4}
-KINDS = {"closed-loop": ("rate_sp", "rate"), "plant": ("rate_out", "rate")}
+MAX_POLE_RADIUS = {"closed-loop": 1.0 - 1e-9, "closed-loop-angle": 1.0 - 1e-9, "plant": 1.0 + 1e-4}
+KINDS = {"closed-loop": ("rate_sp", "rate"), "closed-loop-angle": ("att_sp", "rate"), "plant": ("rate_out", "rate")}
 
 
 @dataclass
@@ -213,7 +217,7 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
     # significant lag late, and a loop logged slower than it runs answers within a sample. The plant keeps the
     # estimate: its first Markov parameter is what estimate_delay reads, and a shorter delay lets a low order
     # trade dynamics for it
-    if kind == "closed-loop":
+    if kind.startswith("closed-loop"):
         d = 2 if delay is None else delay
         delays = sorted({d, max(d - 1, 0), max(d - 2, 0), 0}, reverse=True)
     else:
@@ -370,3 +374,85 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
     return AxisModel(rec.axis, "plant-indirect", plant_d, "rate_out", "rate", {"rate_out": "1", "rate": "rad/s"},
                      rec.dt, split, v, [], pred, {"params": dict(res.params), "closed_loop": cl,
                                                   "fit_vaf": float(np.ravel(res.fit_vaf)[0]), "substeps": sub})
+
+
+def angle_cascade(rate_controller, angle_p: float, ff: float, dt: float) -> ct.StateSpace:
+    """The angle and rate controllers as one system ``[att_sp, rate, att] -> rate_out`` at ``dt``: ``rate_sp =
+    angle_p (att_sp - att) + ff (att_sp[k] - att_sp[k-1]) / dt`` (the angle P and the attitude set-point's rate
+    as feed-forward, ArduPilot's and PX4's linear angle law) into the two-input rate controller ``[rate_sp, rate]``
+    (moved to ``dt`` by :func:`controller_at`).
+
+    Examples
+    --------
+    >>> K = angle_cascade(ct.ss([], [], [], [[0.1, -0.1]], 0.0025), 6.0, 0.0, 0.0025)
+    >>> np.round(np.asarray(K.D), 3).tolist()
+    [[0.6, -0.1, -0.6]]
+    """
+    C2 = controller_at(rate_controller, dt)
+    if C2.ninputs != 2:
+        raise ValueError(f"the rate controller must take [rate_sp, rate]; it has {C2.ninputs} inputs")
+    k = ff / dt
+    pre = ct.ss([[0.0]], [[1.0, 0.0, 0.0]], [[-k], [0.0]], [[angle_p + k, 0.0, -angle_p], [0.0, 1.0, 0.0]], dt)
+    return ct.series(pre, C2)
+
+
+def identify_plant_through_angle_loop(rec: Record, split: Split, rate_controller, angle_p: float, ff: float = 0.0,
+                                      structure: GreyBoxModel | None = None, *, rng=None) -> AxisModel:
+    """The plant recovered through the angle and rate controllers from the attitude set-point (indirect route of
+    an angle mode, where the logged rate set-point is the angle loop's output and not an input).
+
+    As :func:`identify_plant_indirect`, with the loop ``rate_out = angle_cascade(...) [att_sp; rate; att]``
+    closed around ``structure`` (default :func:`rate_angle_plant_structure`) and fitted to the measured rate and
+    attitude on the longest identification window (``oe_fit_closed_loop``, initial state estimated); the fitted
+    plant closed again the same way is scored on the held-out rate from the attitude set-point.
+
+    Parameters
+    ----------
+    rec : Record
+        With ``att_sp``, ``rate``, ``att``; the angles continuous (unwrapped) and in one branch.
+    split : Split
+    rate_controller : control LTI
+        Two inputs ``[rate_sp, rate]``.
+    angle_p : float
+        The angle P, 1/s.
+    ff : float
+        The attitude set-point's rate fed forward into the rate set-point (1: ArduCopter with ATC_RATE_FF_ENAB).
+
+    Examples
+    --------
+    >>> res = identify_plant_through_angle_loop(rec, split, C, angle_p=8.3, ff=1.0)  # doctest: +SKIP
+    >>> res.extra["params"]["K"]  # doctest: +SKIP
+    """
+    structure = structure or rate_angle_plant_structure()
+    sub = loop_substeps(rate_controller, rec.dt)
+    K = angle_cascade(rate_controller, angle_p, ff, rec.dt / sub)
+    runs = window_runs(rec, split.ident, MIN_SAMPLES)
+    if not runs:
+        raise DataError(f"the {rec.axis} axis has no identification window of at least {MIN_SAMPLES} samples")
+    main = max(runs, key=len)[:MAX_FIT_SAMPLES]
+    r = _centred(rec.data["att_sp"], main)
+    y = np.column_stack([_centred(rec.data["rate"], main), _centred(rec.data["att"], main)])
+    # the coarse gain scan of identify_plant_indirect, on the rate
+    grid = structure.param("K").value * np.logspace(-2, 2, 17)
+    costs = []
+    for kk in grid:
+        with np.errstate(over="ignore", invalid="ignore"):  # a gain that destabilises the loop diverges
+            ys = simulate_closed_loop(structure, K, r, rec.dt, {**structure.values(), "K": float(kk)},
+                                      feedback_output=(0, 1), substeps=sub)
+            e = y[:, 0] - (ys[:, 0] - ys[:, 0].mean())
+            cost = float(np.mean(e * e))
+        costs.append(cost if np.isfinite(cost) else np.inf)
+    theta0 = {"K": float(grid[int(np.argmin(costs))])}
+    res = oe_fit_closed_loop(structure, K, r, y, rec.dt, theta0, feedback_output=(0, 1), estimate_x0=True,
+                             cov="white", rng=rng, substeps=sub)
+    plant_f = res.model.discretize(rec.dt / sub)
+    cl = IdentifiedModel(sys=lift_interpolated(_closed_loop(plant_f, K, (0, 1)), sub)[0, :],
+                         method="closed-loop-through-angle-and-rate-controller", settings={"substeps": sub})
+    v, pred = holdout_prediction(cl, rec, "att_sp", "rate", split.holdout)
+    plant_d = res.discrete()
+    # the rate plant: the attitude state, unseen from the rate, goes
+    plant_rate = replace(plant_d, sys=ct.minreal(plant_d.sys[0, :], verbose=False))
+    return AxisModel(rec.axis, "plant-indirect-angle", plant_rate, "rate_out", "rate",
+                     {"rate_out": "1", "rate": "rad/s"}, rec.dt, split, v, [], pred,
+                     {"params": dict(res.params), "closed_loop": cl, "angle_p": angle_p, "ff": ff,
+                      "fit_vaf": [float(x) for x in np.ravel(res.fit_vaf)], "substeps": sub})

@@ -47,6 +47,7 @@ import control as ct
 from ..greybox import GreyBoxModel, Param
 
 __all__ = ["STRUCTURES", "MOTOR_PARAMS", "SHARES_MOTORS", "plant_structure", "rate_plant_structure",
+           "rate_angle_plant_structure",
            "yaw_rate_plant_structure"]
 
 
@@ -93,6 +94,27 @@ def yaw_rate_plant_structure(K: float = 10.0, z_rad_s: float = 2.5, a_rad_s: flo
 
 
 #: axis -> the constructor of its rate plant's structure
+def rate_angle_plant_structure(K: float = 100.0, tau_s: float = 0.03, delay_s: float = 0.005) -> GreyBoxModel:
+    """:func:`rate_plant_structure` with the attitude as a second output: ``[rate, att]`` from ``rate_out``, the
+    attitude the rate integrated (rad), for a loop closed through the angle controller.
+
+    Examples
+    --------
+    >>> rate_angle_plant_structure().outputs
+    ['rate', 'att']
+    """
+    params = [Param("K", K, 1e-3, 1e6, "rad/s^2"), Param("tau_s", tau_s, 1e-3, 1.0, "s"),
+              Param("delay_s", delay_s, 0.0, 0.1, "s")]
+
+    def build(th):
+        # states: angular acceleration (the motors' lag), rate, attitude
+        A = [[-1.0 / th["tau_s"], 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+        return ct.ss(A, [[th["K"] / th["tau_s"]], [0.0], [0.0]], [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [[0.0], [0.0]])
+
+    return GreyBoxModel("rate-angle-plant", params, build, delay_s="delay_s", inputs=["rate_out"],
+                        outputs=["rate", "att"])
+
+
 STRUCTURES: dict[str, Callable[[], GreyBoxModel]] = {
     "roll": rate_plant_structure, "pitch": rate_plant_structure, "yaw": yaw_rate_plant_structure}
 

@@ -12,8 +12,12 @@ from scipy import signal as sig
 
 from rotorlab.atomic import atomic_path, write_text
 
-__all__ = ["write_report"]
+from .windows import holdout_excitation
 
+__all__ = ["write_report", "plot_points", "PLOT_POINTS"]
+
+# Points per trace in a time plot: a 1000-pixel-wide figure shows no more; a 1 kHz gyro over ten minutes is 600 000
+PLOT_POINTS = 4000
 COLORS = {"ident": "#2ca02c", "holdout": "#ff7f0e", "excitation": "#9467bd", "airborne": "#1f77b4"}
 
 
@@ -21,6 +25,32 @@ def _savefig(fig, path: Path) -> Path:
     with atomic_path(path, ".png") as tmp:
         fig.savefig(tmp, dpi=90, format="png")
     return path
+
+
+def plot_points(t_s, x, max_points: int = PLOT_POINTS) -> tuple[np.ndarray, np.ndarray]:
+    """``(t_s, x)`` thinned for a time plot to at most about ``max_points`` points: the minimum and the maximum of
+    each of ``max_points // 2`` equal runs of samples, in time order; a series that short already is returned as is.
+
+    Written here because plain decimation (every n-th sample, or ``scipy.signal.decimate``'s low-pass) drops or
+    smooths the spikes and saturations a log review looks for; the min/max envelope keeps every extreme.
+
+    Examples
+    --------
+    >>> t = np.arange(100_000) * 1e-3
+    >>> x = np.zeros_like(t); x[51_234] = 5.0
+    >>> tp, xp = plot_points(t, x, 1000)
+    >>> len(tp) <= 1000, float(xp.max()), float(tp[np.argmax(xp)])
+    (True, 5.0, 51.234)
+    """
+    t_s, x = np.asarray(t_s), np.asarray(x)
+    if len(x) <= max_points:
+        return t_s, x
+    n_bins = max(1, max_points // 2)
+    edges = np.linspace(0, len(x), n_bins + 1).astype(int)
+    i_lo = np.array([a + int(np.argmin(x[a:b])) for a, b in zip(edges[:-1], edges[1:])])
+    i_hi = np.array([a + int(np.argmax(x[a:b])) for a, b in zip(edges[:-1], edges[1:])])
+    idx = np.sort(np.concatenate([i_lo, i_hi]))
+    return t_s[idx], x[idx]
 
 
 def _timeline(res, out: Path) -> Path:
@@ -53,8 +83,8 @@ def _axis_figs(res, axis, out: Path) -> list[Path]:
     sp, r = log.series(axis, "rate_sp"), log.series(axis, "rate")
     files = []
     fig, ax = plt.subplots(figsize=(10, 3), constrained_layout=True)
-    ax.plot(r.t_s, r.values, lw=0.6, label=f"rate ({r.source})")
-    ax.plot(sp.t_s, sp.values, lw=0.8, label=f"rate set-point ({sp.source})")
+    ax.plot(*plot_points(r.t_s, r.values), lw=0.6, label=f"rate ({r.source})")
+    ax.plot(*plot_points(sp.t_s, sp.values), lw=0.8, label=f"rate set-point ({sp.source})")
     for w in cl.split.ident:
         ax.axvspan(w.start_s, w.stop_s, color=COLORS["ident"], alpha=0.15)
     for w in cl.split.holdout:
@@ -68,7 +98,7 @@ def _axis_figs(res, axis, out: Path) -> list[Path]:
     # excitation spectra and coherence over the identification windows
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3), constrained_layout=True)
     for kind, m in models.items():
-        if kind == "plant-indirect":
+        if kind.startswith("plant-indirect"):
             continue
         rec = log.record(axis, (m.input, m.output))
         idx = np.concatenate([np.flatnonzero((rec.t_s >= w.start_s) & (rec.t_s < w.stop_s)) for w in m.split.ident])
@@ -91,8 +121,8 @@ def _axis_figs(res, axis, out: Path) -> list[Path]:
     fig, axs = plt.subplots(len(models), 1, figsize=(10, 2.4 * len(models)), constrained_layout=True, squeeze=False)
     for a, (kind, m) in zip(axs[:, 0], models.items()):
         for k, (t, y, yh) in enumerate(m.prediction):
-            a.plot(t, y, color="k", lw=0.6, label="measured" if k == 0 else None)
-            a.plot(t, yh, color=COLORS["holdout"], lw=0.8, label="model" if k == 0 else None)
+            a.plot(*plot_points(t, y), color="k", lw=0.6, label="measured" if k == 0 else None)
+            a.plot(*plot_points(t, yh), color=COLORS["holdout"], lw=0.8, label="model" if k == 0 else None)
         a.set_title(f"{axis} {kind}: held-out prediction, VAF {m.vaf_holdout:.1f} %", fontsize=9)
         a.legend(fontsize=7, loc="upper right")
     axs[-1, 0].set_xlabel("time (s)")
@@ -116,6 +146,11 @@ def write_report(res, out: Path) -> list[Path]:
         for kind, m in models.items():
             wins = "<br>".join(f"{w.start_s:.2f}-{w.stop_s:.2f} s: {e(w.reason)}" for w in m.split.ident)
             held = ", ".join(f"{w.start_s:.2f}-{w.stop_s:.2f} s" for w in m.split.holdout)
+            rms, coh = holdout_excitation(m.split)
+            if np.isfinite(rms):
+                # the plant through the controller is scored on its closed loop's windows and input
+                u_name = {"plant-indirect": "rate_sp", "plant-indirect-angle": "att_sp"}.get(kind, m.input)
+                held += f"<br>{u_name} RMS {rms:.3g} (detrended), coherence {coh:.2f} in the band"
             params = ", ".join(f"{k} = {v:.4g}" for k, v in m.extra.get("params", {}).items())
             desc = f"{e(m.model.method)} {e(str({k: v for k, v in m.model.settings.items() if k != 'dt'}))}"
             rows.append(f"<tr><td>{axis}</td><td>{kind}</td><td>{m.input} ({m.units.get(m.input, '')}) -> "

@@ -4,7 +4,7 @@ the log report. ``rotorlab ident FLIGHT.ulg|FLIGHT.bin|CSV_DIR`` calls :func:`id
 from __future__ import annotations
 
 import importlib.util
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -13,18 +13,22 @@ from rotorlab.errors import DataError
 
 from . import read_flight_log
 from .flightlog import FlightLog
-from .identify import AxisModel, identify_direct, identify_plant_indirect
+from .identify import AxisModel, identify_direct, identify_plant_indirect, identify_plant_through_angle_loop
 from .names import AXES
 from .plant_structures import MOTOR_PARAMS, SHARES_MOTORS, plant_structure
-from .windows import select_windows
+from .windows import MIN_RMS, holdout_excitation, select_windows
 
 __all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "autopilot_gyro_filter", "controller_params",
-           "MAX_IDENT_HZ"]
+           "MAX_IDENT_HZ", "angle_loop_share", "ANGLE_LOOP_VAF"]
 
 # The identification rate of a log logged faster (default ``rate_hz``): the rate loop's informative band ends near
 # 15-30 Hz, so 250 Hz keeps 8x margin; a 1 kHz log identified at 1 kHz costs 4x the samples and far more in the
 # subspace fits for nothing. A loop faster than the log's rate is simulated between samples (identify_plant_indirect)
 MAX_IDENT_HZ = 250.0
+# A rate set-point the angle law explains to this VAF (%) from the measured attitude is the angle loop's output: on
+# the ArduCopter development log (STABILIZE) 98-99 %; a pilot's or an autotune's rate input is not a function of
+# the attitude
+ANGLE_LOOP_VAF = 90.0
 
 
 @dataclass
@@ -190,6 +194,22 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
                 raise
             res.notes.append(f"{axis}: not identified: {exc}")
             continue
+        rms, coh = holdout_excitation(split_cl)
+        if rms < MIN_RMS["rate_sp"]:
+            res.notes.append(f"{axis}: the held-out part is not excited (rate_sp RMS {rms:.3g} rad/s, detrended, "
+                             f"under {MIN_RMS['rate_sp']:g}; coherence {coh:.2f} in the band): its VAF scores the noise "
+                             "and disturbances, not the model; hold out an excited part (--holdout, --window)")
+        share = angle_loop_share(log, axis, rec, split_cl.holdout)
+        if share is not None:
+            models["closed-loop"].extra["angle_loop"] = share
+            if share["vaf"] >= ANGLE_LOOP_VAF:
+                law = f" (the log's angle P: {share['P_log']:.3g})" if "P_log" in share else ""
+                res.notes.append(
+                    f"{axis}: the logged rate set-point is the angle loop's output: rate_sp = {share['P']:.3g} "
+                    f"(att_sp - att) + {share['F']:.2f} d(att_sp)/dt explains {share['vaf']:.1f} % of it on the "
+                    f"held-out part{law}. It is computed from the attitude that integrates the rate, so the "
+                    "closed-loop model (rate_sp -> rate) fits that feedback as well as the rate loop, and a plant "
+                    "closed with the rate controller alone cannot reproduce it")
         if has_out:
             # the closed loop decides whether the axis can be identified at all; a plant the rate-loop output
             # does not excite enough is a note, not the end of the run
@@ -211,6 +231,19 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
                 res.notes.append(f"{axis}: no plant through the controller: {exc}")
         else:
             res.notes.append(f"{axis}: plant through the known controller skipped (rotorlab.autopilots not installed)")
+        if C is not None and share is not None and share["vaf"] >= ANGLE_LOOP_VAF and "P_log" in share:
+            # the angle mode's input is the attitude set-point: the closed loop from it and the plant through the
+            # angle and rate controllers, the pair the indirect route compares when the rate set-point is fed back
+            try:
+                rec_a = _angle_record(log, axis, rec.dt)
+                split_a = select_windows(log, rec_a, "att_sp", "rate", holdout=holdout, override=windows, min_rms={})
+                models["closed-loop-angle"] = identify_direct(rec_a, split_a, "closed-loop-angle")
+                models["plant-indirect-angle"] = identify_plant_through_angle_loop(rec_a, split_a, C, share["P_log"],
+                                                                                   share["F"])
+                recs["closed-loop-angle"] = recs["plant-indirect-angle"] = rec_a
+            except (DataError, ValueError) as exc:
+                models.pop("closed-loop-angle", None)
+                res.notes.append(f"{axis}: no plant through the angle and rate controllers: {exc}")
         res.models[axis] = models
         for kind, m in models.items():
             res.files.append(_save(save_model, out / f"{axis}-{kind}.json", m, log, recs[kind]))
@@ -226,6 +259,64 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
     return res
 
 
+def angle_loop_share(log: FlightLog, axis: str, rec, windows) -> dict | None:
+    """How much of the logged rate set-point the angle loop explains: ``rate_sp = P (att_sp - att) + F
+    d(att_sp)/dt`` (the angle error wrapped to +-pi, the set-point's rate by backward difference: the angle P and
+    feed-forward of ArduPilot and PX4) fitted by least squares on ``windows`` of the log at ``rec``'s rate, each
+    about its mean. ``None`` where the log has no ``att`` or ``att_sp`` for ``axis``.
+
+    Returns
+    -------
+    dict
+        ``vaf`` (%), ``P`` (1/s), ``F`` (1) and, where ``rotorlab.autopilots`` has the autopilot's angle law and
+        the log its parameters, ``P_log``: the angle P of the log's parameters.
+
+    Examples
+    --------
+    >>> share = angle_loop_share(log, "roll", rec, split.holdout)  # doctest: +SKIP
+    >>> share["vaf"], share["P"]  # doctest: +SKIP
+    """
+    if not {"att", "att_sp"} <= set(log.signals[axis]):
+        return None
+    r = log.record(axis, ("rate_sp", "att", "att_sp"), rate_hz=1.0 / rec.dt)
+    cols, target = [], []
+    for w in windows:
+        idx = np.flatnonzero((r.t_s >= w.start_s) & (r.t_s < w.stop_s))
+        if len(idx) < 32:
+            continue
+        sp = np.unwrap(r.data["att_sp"][idx])
+        err = np.angle(np.exp(1j * (r.data["att_sp"][idx] - r.data["att"][idx])))
+        ff = np.diff(sp, prepend=sp[0]) / r.dt
+        cols.append(np.column_stack([err - err.mean(), ff - ff.mean()]))
+        target.append(r.data["rate_sp"][idx] - r.data["rate_sp"][idx].mean())
+    if not cols:
+        return None
+    X, y = np.vstack(cols), np.concatenate(target)
+    if not np.var(y) > 0:
+        return None
+    theta = np.linalg.lstsq(X, y, rcond=None)[0]
+    out = {"vaf": float(max(0.0, 100.0 * (1.0 - np.var(y - X @ theta) / np.var(y)))), "P": float(theta[0]),
+           "F": float(theta[1])}
+    if importlib.util.find_spec("rotorlab.autopilots") is not None:
+        from rotorlab import autopilots
+
+        try:
+            law = autopilots.get(log.autopilot).attitude_controller_lti(controller_params(log)[0], axis, r.dt)
+            out["P_log"] = float(np.asarray(law.D)[0, 0])
+        except (KeyError, AttributeError, ValueError):
+            pass  # no angle law or parameter for it: the fitted P stands alone
+    return out
+
+
+def _angle_record(log: FlightLog, axis: str, dt: float):
+    """The attitude set-point, rate and attitude of ``axis`` at ``dt``, the angles continuous: the set-point
+    unwrapped, the attitude that set-point less the wrapped angle error (a yaw crossing +-pi stays one branch)."""
+    r = log.record(axis, ("att_sp", "rate", "att"), rate_hz=1.0 / dt)
+    sp = np.unwrap(r.data["att_sp"])
+    err = np.angle(np.exp(1j * (r.data["att_sp"] - r.data["att"])))
+    return replace(r, data={**r.data, "att_sp": sp, "att": sp - err})
+
+
 def _record(log: FlightLog, axis: str, names, rate_hz):
     if rate_hz is None:
         rate_hz = min(MAX_IDENT_HZ, min(log.series(axis, n).rate_hz for n in names))
@@ -239,8 +330,11 @@ def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
              "time_base": "s (log stamps converted from microseconds)",
              "windows": [[w.start_s, w.stop_s, w.reason] for w in m.split.ident],
              "holdout": [[w.start_s, w.stop_s] for w in m.split.holdout],
+             "holdout_excitation": dict(zip(("rms", "coherence"),
+                                            (None if np.isnan(v) else v for v in holdout_excitation(m.split)))),
              "vaf_holdout": m.vaf_holdout, "tried": [[t, None if np.isnan(v) else v] for t, v in m.tried],
              **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {}),
+             **({"angle_loop": m.extra["angle_loop"]} if "angle_loop" in m.extra else {}),
              **({"controller_params_mapped": m.extra["controller_params_mapped"]}
                 if "controller_params_mapped" in m.extra else {})}
     return save_model(path, m.model, vaf=[m.vaf_holdout], extra=extra, input=[m.input], output=[m.output],

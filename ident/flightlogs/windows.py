@@ -17,7 +17,7 @@ from rotorlab.errors import DataError
 from .flightlog import FlightLog, Interval, Record
 
 __all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats", "band_stats_many", "MIN_RMS",
-           "GROUND_GUARD_S"]
+           "GROUND_GUARD_S", "holdout_excitation"]
 
 # The least excitation an input must carry in the band (RMS, its unit): 0.05 rad/s (3 deg/s) of rate set-point is
 # above what a hovering attitude loop commands from sensor noise and well below a pilot's stick input.
@@ -32,7 +32,8 @@ GROUND_GUARD_S = 1.0
 class Window:
     """A time window ``[start_s, stop_s)`` with why it was chosen and its excitation figures.
 
-    ``power`` is the input's mean power in the band (unit^2), ``coherence`` the mean magnitude-squared
+    ``power`` is the input's mean power in the band (unit^2; for a held-out window the variance of the input with
+    its linear trend removed, all of what the model is scored on), ``coherence`` the mean magnitude-squared
     coherence input -> output in the band (NaN where not computed, e.g. a user's window)."""
 
     start_s: float
@@ -153,6 +154,39 @@ def split_windows(log: FlightLog, rec: Record, holdout: float = 0.4) -> tuple[li
     return ident, held, kind
 
 
+def _held_window(iv, rec: Record, u_name: str, y_name: str, band, reason: str) -> Window:
+    """A held-out window with its input's power (the variance of the window, linear trend removed) and the mean
+    coherence in the band; NaN where under 32 samples. A VAF on held-out data that carries no input scores noise
+    and disturbances, and the report says so. The power is not limited to the band: a model is
+    scored on all of its input, and a slow axis (yaw, heading hold) lives below the band's low edge."""
+    idx = np.flatnonzero((rec.t_s >= iv.start_s) & (rec.t_s < iv.stop_s))
+    if len(idx) < 32:
+        return Window(iv.start_s, iv.stop_s, reason)
+    u, y = rec.data[u_name][idx], rec.data[y_name][idx]
+    _, c = band_stats(u, y, rec.dt, band)
+    # the record is resampled below the band's top already; Welch's ~1 s segments would drop what is slower
+    return Window(iv.start_s, iv.stop_s, reason, float(np.var(sig.detrend(u))), c)
+
+
+def holdout_excitation(split: Split) -> tuple[float, float]:
+    """(input RMS, detrended, mean coherence in the band) over the held-out windows, weighted by
+    their durations; NaN where no held-out window was long enough to measure.
+
+    Examples
+    --------
+    >>> w = [Window(0.0, 10.0, "held out", power=0.04, coherence=0.5), Window(10.0, 40.0, "held out", 0.0, 0.1)]
+    >>> rms, coh = holdout_excitation(Split([], w))
+    >>> round(rms, 3), round(coh, 2)
+    (0.1, 0.2)
+    """
+    ws = [w for w in split.holdout if np.isfinite(w.power)]
+    if not ws:
+        return float("nan"), float("nan")
+    d = np.array([w.duration_s for w in ws])
+    return (float(np.sqrt(np.average([w.power for w in ws], weights=d))),
+            float(np.average([w.coherence for w in ws], weights=d)))
+
+
 def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, band_hz=(0.3, 15.0),
                    window_s: float = 4.0, min_coherence: float = 0.3, min_power_fraction: float = 0.01,
                    min_rms=None,
@@ -181,7 +215,8 @@ def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, ban
     band = (band_hz[0], min(band_hz[1], 0.4 / rec.dt))
     ident_iv, held_iv, kind = split_windows(log, rec, holdout)
     u, y = rec.data[u_name], rec.data[y_name]
-    held = [Window(i.start_s, i.stop_s, f"held out: last {holdout:.0%} of the {kind} time") for i in held_iv]
+    held = [_held_window(i, rec, u_name, y_name, band, f"held out: last {holdout:.0%} of the {kind} time")
+            for i in held_iv]
     if override:
         for a, b in override:
             for h in held:
