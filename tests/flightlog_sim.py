@@ -163,8 +163,13 @@ def px4_topics(f: Flight, layout="v1.14", t0_us=1_000_000):
     return topics
 
 
+# the simulated gyro is logged unfiltered: the autopilots' gyro low-pass parameters say so (0 = off), or the
+# reader would take their defaults (PX4 40 Hz, ArduPilot 20 Hz) and identify through a filter the flight never had
+ARDUPILOT_UNFILTERED = {"INS_GYRO_FILTER": 0.0}
+
+
 def px4_params():
-    p = {}
+    p = {"IMU_GYRO_CUTOFF": 0.0}
     for axis, pre in zip(AXES, ("MC_ROLLRATE", "MC_PITCHRATE", "MC_YAWRATE")):
         kp, ki, kd, kff, _ = GAINS[axis]
         p.update({f"{pre}_P": kp, f"{pre}_I": ki, f"{pre}_D": kd, f"{pre}_FF": kff})

@@ -5,7 +5,7 @@ gives. The logs are written by the project (tests/flightlog_sim.py)."""
 import csv
 
 import pytest
-from flightlog_sim import dataflash_messages, fly, px4_params, px4_topics
+from flightlog_sim import ARDUPILOT_UNFILTERED, dataflash_messages, fly, px4_params, px4_topics
 
 from rotorlab.autopilots import ardupilot
 from rotorlab.cli import main
@@ -20,8 +20,9 @@ def fleet(tmp_path_factory):
     for seed in (1, 2):
         f = fly(seed=seed, excite_s=6.0)
         write_ulog(d / f"quad{seed}.ulg", px4_topics(f), px4_params(), {"ver_sw_release": 0x010E0000})
-    write_dataflash(d / "copter.bin", dataflash_messages(fly(seed=3, excite_s=6.0)), {"ATC_RAT_RLL_P": 0.15})
-    write_dataflash(d / "copter2.bin", dataflash_messages(fly(seed=4, excite_s=6.0)), ardupilot.TABLE.defaults())
+    write_dataflash(d / "copter.bin", dataflash_messages(fly(seed=3, excite_s=6.0)), {"ATC_RAT_RLL_P": 0.15, **ARDUPILOT_UNFILTERED})
+    write_dataflash(d / "copter2.bin", dataflash_messages(fly(seed=4, excite_s=6.0)),
+                    {**ardupilot.TABLE.defaults(), **ARDUPILOT_UNFILTERED})
     (d / "broken.ulg").write_bytes(b"not a ulog")
     (d / "notes.txt").write_text("not a log")
     return d

@@ -10,6 +10,7 @@ import control as ct
 import numpy as np
 import pytest
 from flightlog_sim import (
+    ARDUPILOT_UNFILTERED,
     AXES,
     controller,
     dataflash_messages,
@@ -134,7 +135,7 @@ def _write(fmt, f, folder, **kw):
         (out / "parameters.csv").write_text("".join(f"{k},{v}\n" for k, v in px4_params().items()))
         return out
     if fmt == "dataflash":
-        return write_dataflash(folder / "flight.bin", dataflash_messages(f), {"ATC_RAT_RLL_P": 0.15})
+        return write_dataflash(folder / "flight.bin", dataflash_messages(f), {"ATC_RAT_RLL_P": 0.15, **ARDUPILOT_UNFILTERED})
     raise AssertionError(f"no writer for registry entry {fmt}")
 
 

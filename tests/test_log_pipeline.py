@@ -1,79 +1,95 @@
-"""``rotorlab pipeline --log``: from a flight log the project writes itself (tests/flightlog_sim.py: known plant and
-controller) to a report and a parameter file, through the stage machinery (resume, cache), and its refusals.
+"""``rotorlab pipeline --log``: from a flight the twin writes itself to a report and a parameter file, through the
+stage machinery (resume, cache), and its refusals.
 
-The simulated flight's plants share one motor pole, as a multirotor's axes do (flightlog_sim's default gives yaw a
-slower pole than roll and pitch, which an X-frame twin, whose rotors all drive every axis, cannot have)."""
+Issue 29's acceptance set-up: tuhh-quad flies PX4's laws with PX4 autotune's excitation on each axis in turn and
+writes the flight as a ULog (:func:`rotorlab.twinlogs.fly_twin_log`); the pipeline starts from a plus-quad file with
+tuhh-quad's mass, geometry and rotor but inertia and motor pole 30 % off (:func:`start_file`). Ground truth is
+tuhh-quad itself: its per-axis response, and its own parameters flown against the tuned ones."""
 
 import json
 import re
 
-import flightlog_sim as fs
 import numpy as np
 import pytest
 
 from rotorlab.cli import main
-from rotorlab.ident.flightlogs.writers import write_dataflash, write_ulog
+from rotorlab.vehicles import VEHICLES_DIR, load_vehicle
 
-PLANTS = {"roll": (400.0, 0.03), "pitch": (350.0, 0.03), "yaw": (60.0, 0.03)}
+AXES = ("roll", "pitch", "yaw")
+TRUE_INERTIA = "inertia_kgm2 = [0.0181, 0.0196, 0.0273]"
+TRUE_LAG = "lag_s = [0.037088, 0.036892, 0.037088, 0.036892]"
+
+
+def start_file(folder):
+    """tuhh-quad's vehicle file without its rigs, inertia x1.3 / x0.7 / x1.3 and the motor pole x0.7 (lag / 0.7)."""
+    text = (VEHICLES_DIR / "tuhh-quad" / "vehicle.toml").read_text().split("[rig.pitch]")[0]
+    assert TRUE_INERTIA in text and TRUE_LAG in text
+    text = text.replace(TRUE_INERTIA, "inertia_kgm2 = [0.02353, 0.01372, 0.03549]")
+    text = text.replace(TRUE_LAG, "lag_s = [0.052983, 0.052703, 0.052983, 0.052703]")
+    text = re.sub(r'(?m)^name = "tuhh-quad"', 'name = "tuhh-start"', text, count=1)
+    path = folder / "start.toml"
+    path.write_text(text)
+    return path
 
 
 @pytest.fixture(scope="module")
-def flight():
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(fs, "PLANTS", PLANTS)
-        yield fs.fly(seed=3, excite_s=10.0)
+def px4_run(tmp_path_factory):
+    """The tiny level on the twin's PX4 flight, serially (the numbers are the executor's anyway)."""
+    from rotorlab.twinlogs import fly_twin_log
 
-
-@pytest.fixture(scope="module")
-def px4_run(flight, tmp_path_factory):
-    """The tiny level on the simulated PX4 flight, serially (the numbers are the executor's anyway)."""
     folder = tmp_path_factory.mktemp("logpipe")
-    log = write_ulog(folder / "flight.ulg", fs.px4_topics(flight), fs.px4_params(), {"ver_sw_release": 0x010E0000})
+    log = fly_twin_log(folder / "twin.ulg", "tuhh-quad", autopilot="px4", seed=0)
     out = folder / "run"
-    argv = ["pipeline", "--log", str(log), "--tiny", "--out", str(out), "--executor", "serial", "--no-progress"]
+    argv = ["pipeline", "--log", str(log), "--vehicle", str(start_file(folder)), "--tiny", "--out", str(out),
+            "--executor", "serial", "--no-progress"]
     assert main(argv) == 0
     return log, out, argv
 
 
-def test_log_pipeline_writes_report_and_parameter_file(px4_run, capsys):
+def test_log_pipeline_writes_report_and_parameter_file(px4_run):
     from rotorlab import autopilots
 
     _, out, _ = px4_run
     report = (out / "report" / "report.md").read_text()
     # the pilot's part comes first: the verdict and the per-axis table of the log's against the tuned set
     assert report.index("## Before you fly") < report.index("**Verdict.**") < report.index("## Evidence")
-    for axis in fs.AXES:
+    for axis in AXES:
         assert f"| {axis} | log |" in report and f"| {axis} | tuned |" in report
     summary = json.loads((out / "report" / "summary.json").read_text())
     assert summary["verdict"] and summary["files"][0] == "report.md"
     # the parameter file: PX4's format, the tuned gains of every axis with K = 1, within the documented ranges
     params = autopilots.read_params(out / "report" / summary["tune"]["params_file"])
     autopilots.px4.TABLE.check(params)
-    for axis in fs.AXES:
+    for axis in AXES:
         names = autopilots.px4.axis_names(axis)
         assert params[names["K"]] == 1.0 and params[names["P"]] > 0 and names["ANG_P"] in params
     assert params == pytest.approx(summary["tune"]["tuned"])
 
 
-def test_calibrated_twin_matches_the_true_plant(px4_run):
-    """Ground truth: the simulated plant K / (s (tau s + 1)) with one loop period of delay and the held torque
-    (half a period more). The calibrated twin's response (normalised torque -> rad/s) is within 1 dB and 6 deg of
-    it over the calibration band, every axis: the twin matches the identified plants to 0.4 dB and 2 deg, and the
-    identification from 10 s of excitation per axis puts yaw's delay 2 ms short (5.6 deg at 30 rad/s)."""
-    from rotorlab.pipeline.stages.log_calibrate import _SCALE
-    from rotorlab.vehicles import load_vehicle
+def _twin_error(out, axis):
+    """(max dB, max deg) of the calibrated twin's rate response against tuhh-quad's over 1-30 rad/s."""
     from rotorlab.vehicles.fit_axes import twin_response
 
-    _, out, _ = px4_run
-    v = load_vehicle(str(out / "report" / "vehicle.toml"))
-    w = np.logspace(0.0, np.log10(30.0), 12)
-    twin = twin_response(v, list(fs.AXES), w)
-    s = 1j * w
-    for axis, (K, tau) in PLANTS.items():
-        truth = K / (s * (tau * s + 1)) * np.exp(-s * (fs.DELAY_SAMPLES + 0.5) / fs.LOOP_HZ)
-        r = twin[axis] * _SCALE / truth
-        assert np.max(np.abs(20 * np.log10(np.abs(r)))) < 1.0, axis
-        assert np.max(np.abs(np.degrees(np.angle(r)))) < 6.0, axis
+    w = np.logspace(0.0, np.log10(30.0), 15)
+    r = (twin_response(load_vehicle(str(out / "report" / "vehicle.toml")), [axis], w)[axis]
+         / twin_response(load_vehicle("tuhh-quad"), [axis], w)[axis])
+    return float(np.max(np.abs(20 * np.log10(np.abs(r))))), float(np.max(np.abs(np.degrees(np.angle(r)))))
+
+
+@pytest.mark.parametrize("axis", ["roll", "pitch"])
+def test_calibrated_twin_is_tuhh_quad(px4_run, axis):
+    """Issue 29: from 30 % off in inertia and motor pole, the twin calibrated to the log's plants responds as
+    tuhh-quad does within 1 dB and 5 deg over 1-30 rad/s (the start is off by about 3-4 dB)."""
+    db, deg = _twin_error(px4_run[1], axis)
+    assert db < 1.0 and deg < 5.0, (db, deg)
+
+
+@pytest.mark.xfail(strict=True, reason="yaw: 0.8 dB and 12 deg over 1-30 rad/s. The twin matches the log's yaw plant "
+                   "within 0.03 dB and 1.4 deg, but that plant is 0.166 in nu-gap from tuhh-quad's (issue 27: PX4's "
+                   "2 Hz yaw torque low-pass leaves the yaw record without the information; tests/test_twinlogs.py)")
+def test_calibrated_twin_is_tuhh_quad_in_yaw(px4_run):
+    db, deg = _twin_error(px4_run[1], "yaw")
+    assert db < 1.0 and deg < 5.0, (db, deg)
 
 
 def test_twin_predicts_the_held_out_flight(px4_run):
@@ -82,10 +98,31 @@ def test_twin_predicts_the_held_out_flight(px4_run):
     free), and well in absolute terms."""
     _, out, _ = px4_run
     pred = json.loads((out / "stages" / "calibrate" / "stage.json").read_text())["result"]["prediction"]
-    assert set(pred) == set(fs.AXES)
+    assert set(pred) == set(AXES)
     for axis, p in pred.items():
         assert p["twin_vaf_pct"] > 95.0, axis
         assert p["twin_vaf_pct"] >= p["closed_loop_vaf_pct"] - 1.0, axis
+
+
+def test_tuned_parameters_beat_the_logs_in_the_validation_scenarios(px4_run):
+    """Issue 29: the tuned set against the log's own (tuhh-quad's PX4 defaults flown in the log) in every
+    validation scenario: per axis on the calibrated twin's linearisation the input-disturbance peak and the rate
+    step's overshoot lower, the angle step settling sooner, at a disk margin no smaller; in the MuJoCo twin the
+    gusts' peak deviation and IAE and the hover's RMS error lower (the same gusts and turbulence for both)."""
+    _, out, _ = px4_run
+    val = json.loads((out / "stages" / "validate" / "stage.json").read_text())["result"]
+    tune = json.loads((out / "stages" / "tune" / "stage.json").read_text())["result"]
+    for axis in AXES:
+        lin = val["linear"][axis]
+        assert lin["tuned"]["disturbance"]["peak_rad"] < lin["log"]["disturbance"]["peak_rad"], axis
+        assert lin["tuned"]["rate"]["overshoot_pct"] <= lin["log"]["rate"]["overshoot_pct"], axis
+        assert tune["analysis"]["tuned"][axis]["disk_alpha"] >= tune["analysis"]["log"][axis]["disk_alpha"] - 1e-3
+    from rotorlab.pipeline.stages.log_report import twin_headlines
+
+    figures = twin_headlines(val)
+    assert {k[0] for k in figures} == {"gust-pitch", "gust-roll", "hover"} and len(figures) == 6
+    for key, by_set in figures.items():
+        assert by_set["tuned"] < by_set["log"], key
 
 
 def test_validation_flies_both_sets_in_the_twin(px4_run):
@@ -95,7 +132,7 @@ def test_validation_flies_both_sets_in_the_twin(px4_run):
     for key in ("gust-pitch", "gust-roll", "hover"):
         assert set(val["twin"][key]) == {"log", "tuned"}
         assert (out / "stages" / "validate" / "logs" / f"{key}__tuned.parquet").is_file()
-    for axis in fs.AXES:
+    for axis in AXES:
         for name in ("log", "tuned"):
             lin = val["linear"][axis][name]
             assert lin["rate"]["stable"] and lin["attitude"]["stable"], (axis, name)
@@ -116,12 +153,14 @@ def test_rerun_is_cached_and_resumes(px4_run, capsys):
     assert [ln.split()[1] for ln in lines if "done in" in ln] == ["report"]
 
 
-def test_ardupilot_log_runs_to_a_parm_file(flight, tmp_path):
+def test_ardupilot_log_runs_to_a_parm_file(tmp_path):
+    """The twin flying ArduPilot's laws with SYSID's chirp, written as DataFlash, from the shipped x500."""
     from rotorlab import autopilots
+    from rotorlab.twinlogs import fly_twin_log
 
-    # the log carries the whole parameter table, as ArduCopter logs do (the plant through the controller needs it)
-    params = {**autopilots.ardupilot.TABLE.defaults(), "ATC_RAT_RLL_P": 0.15}
-    log = write_dataflash(tmp_path / "flight.bin", fs.dataflash_messages(flight), params)
+    # SYSID's chirp from 2 Hz at 20 deg/s, as tests/test_twinlogs.py flies it (SID_F_START_HZ, SID_MAGNITUDE)
+    log = fly_twin_log(tmp_path / "twin.bin", "tuhh-quad", autopilot="ardupilot", seed=0,
+                       options={"sid_f_start_hz": 2.0, "sid_magnitude_dps": 20.0})
     out = tmp_path / "run"
     assert main(["pipeline", "--log", str(log), "--tiny", "--out", str(out), "--executor", "serial",
                  "--no-progress"]) == 0

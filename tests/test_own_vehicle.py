@@ -290,3 +290,15 @@ def test_own_vehicle_without_gain_sets_flies_an_autopilot_and_refuses_the_cascad
     with pytest.raises(ConfigError) as exc:
         run_scenario("rest", str(own), scene="free-flight", duration_s=1.0)
     assert "gains" in str(exc.value)
+
+
+def test_calibration_with_the_motors_held_fits_only_the_rest():
+    """``fit_motors=False`` keeps the start's lags and delays exactly and fits the inertias (and yaw's rotor terms)
+    alone: from the true motors and inertias 30 % off, the inertias come back."""
+    truth = load_vehicle("tuhh-quad")
+    J = truth.inertia_kgm2
+    start = dataclasses.replace(truth, inertia_kgm2=(1.3 * J[0], 0.7 * J[1], 1.3 * J[2]), rigs={}, published={})
+    c = calibrate_axes(start, _tuhh_targets(truth), fit_motors=False)
+    assert c.lag_s == truth.rotor.lag_s and c.delay_s == truth.rotor.delay_s
+    assert c.inertia_kgm2 == pytest.approx(J, rel=0.02)
+    assert max(r.max_db for r in c.residual.values()) < 0.1

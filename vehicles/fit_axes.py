@@ -195,7 +195,7 @@ def _residual(axis, w, twin, target) -> AxisResidual:
 
 
 def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, scene: str = "gimbal",
-                   yaw_rotor: bool | None = None) -> Calibration:
+                   yaw_rotor: bool | None = None, fit_motors: bool = True) -> Calibration:
     """Fit the twin's inertia, motor poles and delays to per-axis rate models.
 
     Parameters
@@ -212,6 +212,9 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
         Where the twin is linearised (see the module docstring).
     yaw_rotor : bool, optional
         Fit the rotor inertia and in-plane drag too (default: when yaw is a target of a variable-RPM twin).
+    fit_motors : bool
+        Fit the motor lags and delays (default); False keeps the vehicle's, e.g. a yaw fit after roll and pitch
+        have set them (a yaw record alone does not separate lag from delay).
 
     Returns
     -------
@@ -246,7 +249,7 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
             inertia[INERTIA_INDEX[a]] = val
         lag, delay = list(vehicle.rotor.lag_s), list(vehicle.rotor.delay_s)
         for g, lg, dg in zip(names, np.exp(x[n_i:n_i + n_g]), x[n_s:], strict=True):
-            for k in groups[g]:
+            for k in groups[g] if fit_motors else ():  # held motors stay the vehicle's, bit for bit
                 lag[k], delay[k] = lg, dg
         return inertia, lag, delay, (np.exp(x[n_i + n_g:n_s]) if yaw_rotor else None)
 
@@ -280,16 +283,29 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
     hi = np.concatenate([np.log(i0 * INERTIA_FACTOR_RANGE[1]), np.full(n_g, math.log(LAG_RANGE_S[1])), rot_hi,
                          np.full(n_g, DELAY_RANGE_S[1])])
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    free = np.ones(x0.size, dtype=bool)
+    if not fit_motors:
+        free[n_i:n_i + n_g] = free[n_s:] = False
+        x0 = np.concatenate([np.log(i0), np.log(lag0), np.log(r0), del0])  # held exactly, not clipped
+
+    def full(xf):
+        x = x0.copy()
+        x[free] = xf
+        return x
+
     # x_scale: a unit step is a factor e in every other parameter and 10 ms of delay, so the trust region moves
     # them alike; the tolerances let it walk the lag-delay valley to its end (xtol stops it early otherwise)
-    sol = so.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.concatenate([np.ones(n_s), np.full(n_g, 0.01)]),
+    x_scale = np.concatenate([np.ones(n_s), np.full(n_g, 0.01)])
+    sol = so.least_squares(lambda xf: resid(full(xf)), x0[free], bounds=(lo[free], hi[free]), x_scale=x_scale[free],
                            diff_step=1e-3, xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    sol.x = full(sol.x)
     labels = ([f"inertia {a}" for a in axes] + [f"motor lag {g or 'all rotors'}" for g in names]
               + ["rotor inertia", "rotor in-plane drag"][:n_r] + [f"delay {g or 'all rotors'}" for g in names])
     # within 0.1 % of a bound (log parameters) or half a physics step (delays, which are rounded to steps)
     tol = np.concatenate([np.full(n_s, 1e-3), np.full(n_g, 0.5 * PHYSICS_DT_S)])
     at_bounds = tuple(f"{name} at its {'lower' if x - a < b - x else 'upper'} bound"
-                      for name, x, a, b, t in zip(labels, sol.x, lo, hi, tol, strict=True) if min(x - a, b - x) < t)
+                      for name, x, a, b, t, f in zip(labels, sol.x, lo, hi, tol, free, strict=True)
+                      if f and min(x - a, b - x) < t)
     inertia, lag, delay, rot = unpack(sol.x)
     inertia = _triangle(inertia)[0]
     delay = [round(d / PHYSICS_DT_S) * PHYSICS_DT_S for d in delay]
@@ -304,6 +320,31 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
         residual={a: _residual(a, w, after[a], goal[a]) for a in axes},
         residual_start={a: _residual(a, w, before[a], goal[a]) for a in axes},
         cost_evaluations=int(sol.nfev), at_bounds=at_bounds)
+
+
+def calibrate_axes_staged(vehicle: VehicleSpec, targets: dict, **kw) -> Calibration:
+    """:func:`calibrate_axes` in two stages where yaw is a target beside roll or pitch: the motors' lag and delay
+    (with the roll and pitch inertias) from roll and pitch, then every axis with the motors held
+    (``fit_motors=False``), which moves the inertias and yaw's rotor terms. Yaw's rate response separates the
+    motor lag from the delay only weakly (its loop crosses over far below the motor pole, and PX4 low-passes its
+    torque), so fitted jointly its target pulls the motors that roll and pitch determine; flight-log
+    identification borrows them the same way (rotorlab.ident.flightlogs.plant_structures). Otherwise the same
+    as :func:`calibrate_axes`; ``residual_start`` is the starting vehicle's.
+
+    Examples
+    --------
+    >>> cal = calibrate_axes_staged(start, {"roll": G_r, "pitch": G_p, "yaw": G_y})  # doctest: +SKIP
+    """
+    tilt = {a: t for a, t in targets.items() if a != "yaw"}
+    if not tilt or "yaw" not in targets:
+        return calibrate_axes(vehicle, targets, **kw)
+    first = calibrate_axes(vehicle, tilt, **kw)
+    cal = calibrate_axes(first.vehicle, targets, fit_motors=False, **kw)
+    w = np.asarray(kw.get("w_rad_s", W_FIT_RAD_S), dtype=float)
+    before = twin_response(vehicle, list(cal.residual), w, scene=kw.get("scene", "gimbal"))
+    start = {a: _residual(a, w, before[a], _target_response(targets[a], w)) for a in cal.residual}
+    return dataclasses.replace(cal, residual_start=start, cost_evaluations=first.cost_evaluations + cal.cost_evaluations,
+                               at_bounds=tuple(dict.fromkeys(first.at_bounds + cal.at_bounds)))
 
 
 def _set_key(lines: list, section: str, key: str, value: str, note: str) -> None:

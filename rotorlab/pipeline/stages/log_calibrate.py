@@ -1,5 +1,5 @@
 """Log stage 2, calibrate: the twin's inertia, motor poles and delays fitted to the identified per-axis plants
-(:func:`rotorlab.vehicles.fit_axes.calibrate_axes`), and the calibrated twin's prediction of the held-out flight.
+(:func:`rotorlab.vehicles.fit_axes.calibrate_axes_staged`), and the calibrated twin's prediction of the held-out flight.
 
 The starting twin is ``--vehicle`` (a vehicle TOML, e.g. from ``rotorlab vehicle new``, or a shipped name), else
 the shipped ``x500`` (PX4's reference vehicle). A log's plant runs from the autopilot's normalised torque to rad/s;
@@ -28,7 +28,7 @@ import numpy as np
 from rotorlab import lti
 from rotorlab.ident.flightlogs import read_flight_log
 from rotorlab.ident.flightlogs.identify import controller_at, holdout_prediction, loop_substeps
-from rotorlab.ident.flightlogs.run import autopilot_controller
+from rotorlab.ident.flightlogs.run import autopilot_controller, autopilot_gyro_filter
 from rotorlab.ident.flightlogs.windows import Window
 from rotorlab.ident.greybox import _closed_loop, lift_interpolated
 from rotorlab.ident.model import IdentifiedModel
@@ -43,7 +43,7 @@ from rotorlab.vehicles.fit_axes import (
     DELAY_RANGE_S,
     INERTIA_INDEX,
     LAG_RANGE_S,
-    calibrate_axes,
+    calibrate_axes_staged,
     twin_response,
     twin_scene,
     write_calibrated,
@@ -84,6 +84,9 @@ def twin_holdout_vaf(log, v, axis: str, dt_s: float, holdout) -> float:
     sub = loop_substeps(C, rec.dt)
     K = controller_at(C, rec.dt / sub)
     plant = twin_plant(v, axis, rec.dt / sub)
+    gyro_filter = autopilot_gyro_filter(log)
+    if gyro_filter is not None:  # the controller and the log both see the rate through the autopilot's gyro filter
+        plant = ct.series(plant, gyro_filter(rec.dt / sub))
     cl = IdentifiedModel(sys=lift_interpolated(_closed_loop(plant, K, 0), sub), method="twin-closed-loop",
                          settings={"substeps": sub})
     windows = [Window(float(a), float(b), "held out") for a, b in holdout]
@@ -137,7 +140,7 @@ def run(ctx: StageContext) -> dict:
         notes.append("starting inertia scaled to the log's torque gain first ("
                      + ", ".join(f"{a} x{r:.3g}" for a, r in prescaled.items())
                      + "): the log's normalised torque is not the twin's (allocator scaling)")
-    cal = calibrate_axes(v0, targets)
+    cal = calibrate_axes_staged(v0, targets)
     out = write_calibrated(source, cal, ctx.work / "vehicle.toml",
                            note=f"calibrated to the flight log {ident['log']} (rotorlab pipeline --log)")
     v = load_vehicle(str(out))

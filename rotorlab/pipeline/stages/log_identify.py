@@ -9,6 +9,7 @@ from __future__ import annotations
 import control as ct
 
 from rotorlab import autopilots
+from rotorlab.ident.flightlogs.plant_structures import STRUCTURES
 from rotorlab.ident.flightlogs.run import controller_params, identify_flight_log
 from rotorlab.ident.modelio import load_model
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
@@ -59,19 +60,26 @@ def usable_plant(axis_models: dict) -> tuple[str | None, str]:
                   f"{cl:.1f} %): the twin keeps its inertia and the axis its log gains")
 
 
+# the per-axis plant structures by the name a model file records (settings.structure)
+STRUCTURE_BY_NAME = {m.name: m for m in (make() for make in STRUCTURES.values())}
+
+
 def plant_of(path) -> tuple | None:
     """The plant of a model file written by this stage as ``(G, delay_s)``, normalised torque -> rad/s; None for
-    a closed-loop model (the axis had no plant). The plant through the known controller is the grey-box
-    ``K / (s (tau_s s + 1))`` with its transport delay (:func:`rotorlab.ident.flightlogs.identify.
-    rate_plant_structure`): taken continuous from its fitted parameters, so a delay that is not a whole number
+    a closed-loop model (the axis had no plant). The plant through the known controller is its axis's grey-box
+    structure (:mod:`rotorlab.ident.flightlogs.plant_structures`) with its transport delay, without the autopilot's
+    gyro low-pass the fit saw it through: taken continuous from its fitted parameters, so a delay that is not a whole number
     of log samples stays exact (its discrete form holds it as a state at z = 0, which has no continuous twin)."""
     G, delay_s, meta = load_model(path, whole_samples=False)
     units = meta.get("units") or {}
     if units.get((meta.get("input") or [""])[0]) != "1" or units.get((meta.get("output") or [""])[0]) != "rad/s":
         return None
-    th = ((meta.get("settings") or {}).get("extra") or {}).get("params")
-    if th and {"K", "tau_s", "delay_s"} <= set(th):
-        return ct.ss(ct.tf([th["K"]], [th["tau_s"], 1.0, 0.0])), float(th["delay_s"])
+    settings = meta.get("settings") or {}
+    th = (settings.get("extra") or {}).get("params")
+    structure = STRUCTURE_BY_NAME.get(settings.get("structure"))
+    if th and structure is not None and set(structure.names) <= set(th):
+        # the structure's own continuous plant, without the autopilot's gyro filter (the twin's gyro is the raw one)
+        return ct.ss(structure.build(th)), float(th[structure.delay])
     return G, float(delay_s)
 
 
