@@ -215,5 +215,6 @@ def test_default_options_reach_the_full_order_optimum_where_one_start_splits_off
     r = hinfstruct(Ps, S, 1, 1)
     assert r.gamma == pytest.approx(bound, rel=5e-3)
     assert lti.hinfnorm(closed_loop(Ps, 1, 1, r.controller))[0] == pytest.approx(r.gamma, rel=1e-9)
-    # the hops ran, and none of their verified results is below the optimum
-    assert r.hops and min(r.hops) >= bound * (1 - 1e-6)
+    # the hops ran, and none of their verified results is below the optimum (hinfsyn's controller comes from a
+    # bisection on gamma and is within about 0.02 % of it)
+    assert r.hops and min(r.hops) >= bound * (1 - 1e-3)
