@@ -189,9 +189,9 @@ def test_pid_in_other_units_reaches_the_same_gamma():
     # threads) end 0.07 % apart at different (kd, tf), so the bar is the 0.5 % on gamma
     P = ct.minreal(ct.augw(ct.tf([1], [1, 1]), ct.tf([0.5, 2], [1, 0.05]), ct.tf([0.2], [1])), verbose=False)
     a, c = 1e3, 1e-2
-    r0 = hinfstruct(P, PID(1.0, 0.5, 0.1, 0.05), 1, 1)
+    r0 = hinfstruct(P, PID(1.0, 0.5, 0.1, 0.05), 1, 1, starts=1, hops=0)  # one plain start in each units
     Ps = _rescale(P, 1, 1, [a], [c])
-    r = hinfstruct(Ps, PID(1.0 / (a * c), 0.5 / (a * c), 0.1 / (a * c), 0.05), 1, 1)
+    r = hinfstruct(Ps, PID(1.0 / (a * c), 0.5 / (a * c), 0.1 / (a * c), 0.05), 1, 1, starts=1, hops=0)
     assert r.gamma == pytest.approx(r0.gamma, rel=5e-3)
     assert lti.hinfnorm(closed_loop(Ps, 1, 1, r.controller))[0] == pytest.approx(r.gamma, rel=1e-9)
 
