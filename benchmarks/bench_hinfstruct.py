@@ -9,7 +9,8 @@ Nelder-Mead on the exact ab13dd norm, ``--baseline-fev`` evaluations per paramet
 best controller): if it finds a lower gamma the engine stopped short of a local minimum. Prints a Markdown
 table (the README's). The machine may be shared: the load average is printed with the times.
 
-Run: ``python benchmarks/bench_hinfstruct.py [--starts 50] [--problems chain40 mimo8]``.
+Run: ``python benchmarks/bench_hinfstruct.py [--starts 50] [--hops 0] [--problems chain40 mimo8]``. With ``--hops 0``
+(the default here) every start is one plain run, as the start statistics need.
 """
 
 import os
@@ -49,6 +50,7 @@ def baseline(prob, result, fev_per_param):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--starts", type=int, default=10)
+    ap.add_argument("--hops", type=int, default=0, help="basin-hopping runs per round after the starts (0: none)")
     ap.add_argument("--problems", nargs="*", default=list(PROBLEMS))
     ap.add_argument("--baseline-fev", type=int, default=200)
     ap.add_argument("--jobs", type=int, default=1)
@@ -60,7 +62,8 @@ def main():
         prob = PROBLEMS[name]()
         t = time.perf_counter()
         with get_executor("local" if a.jobs > 1 else "serial", a.jobs) as ex:
-            r = hinfstruct(prob.P, prob.controller, prob.nmeas, prob.ncon, starts=a.starts, seed=0, executor=ex)
+            r = hinfstruct(prob.P, prob.controller, prob.nmeas, prob.ncon, starts=a.starts, hops=a.hops, seed=0,
+                           executor=ex)
         wall = time.perf_counter() - t
         g = np.array(r.starts)
         tb = time.perf_counter()

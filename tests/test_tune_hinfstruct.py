@@ -189,6 +189,8 @@ def test_starts_run_through_the_executor_and_are_scaled():
     assert len(r.starts) == 3 and np.all(np.isfinite(r.starts))
     r2 = hinfstruct(P, "static", 2, 2, starts=3, seed=5, n_jobs=2)
     assert r2.starts == r.starts  # same seed, same result on another executor
+    # the basin-hopping rounds after the starts run through it too, with the same result
+    assert r.hops and r2.hops == r.hops and r2.gamma == r.gamma
 
 
 def _sof_5x2x3():

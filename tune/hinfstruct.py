@@ -65,7 +65,10 @@ until its iteration budget runs out, round-off can still grow into another end p
 so they do not depend on a constant factor of the performance channels either. Random starts are random controllers in
 those variables whose rms size is drawn log-uniformly over the loop gains at which the normalised ``P22`` crosses 1 in
 the band of the plant's modes (at least three decades, up to 1000 units: :func:`_variable_scale`), each made stabilising
-by phase one, and run through the project's executor.
+by phase one, and run through the project's executor. By default :func:`hinfstruct` runs several starts and then
+basin hopping from the best end point (:func:`_hop`): where two runs split at one decision into different local minima,
+the hops take both to the lower one, so the default result is the same in any units beyond the single-path round-off
+(benchmarks/bench_hinf_scaling.py). The cascade tuner calls :func:`run_starts` and does not hop.
 
 The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
 goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
@@ -117,6 +120,18 @@ GS_RADII = (1e-3, 1e-4, 1e-5, 1e-6)
 GS_ROUND = 300
 # peaks within this fraction of gamma count as active in the reported stationarity (HinfstructResult.slope)
 SLOPE_BAND = 1e-3
+# hinfstruct's default search: starts (the blocks' values, then random controllers over the plant's loop-gain
+# decades), then rounds of basin hopping from the best end point (:func:`_hop`): hops per round at these rms
+# distances relative to the end point's size in the scaled variables, ended after HOP_PATIENCE rounds in a row
+# that lower gamma by less than HOP_GAIN (relative), or after HOP_ROUNDS rounds. A round that finds another basin
+# gains percents; on a problem where every run creeps (COMPleib HE3) each round gains a little by creeping
+# further, which HOP_GAIN does not count as progress, so the cost stays bounded
+DEFAULT_STARTS = 4
+DEFAULT_HOPS = 4
+HOP_SIZES = (0.03, 0.1, 0.3, 1.0)
+HOP_PATIENCE = 2
+HOP_GAIN = 1e-3
+HOP_ROUNDS = 6
 
 
 class NotStabilisableError(ValueError):
@@ -1433,6 +1448,8 @@ class HinfstructResult:
     slope: float = np.nan         # relative Clarke stationarity of the returned controller
     start_times_s: list = dataclasses.field(default_factory=list)  # wall seconds per start
     start_cpu_s: list = dataclasses.field(default_factory=list)    # CPU seconds per start (its own process)
+    hops: list = dataclasses.field(default_factory=list)           # verified gamma of every basin-hopping run
+    total_cpu_s: float = np.nan                                    # CPU seconds of all starts and hops together
 
 
 def _plant_band(A, dt, npoints=64):
@@ -1540,13 +1557,18 @@ def _as_structure(controller, nmeas, ncon, dt) -> Structure:
     return Structure(list(controller))
 
 
-def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0, n_jobs: int = 1,
+def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int | None = None, hops: int | None = None, seed=0,
+               n_jobs: int = 1,
                executor=None, tol: float = 1e-4, time_limit_s: float | None = None, bounds: dict | None = None,
                max_iter: int = 500, progress: bool = False) -> HinfstructResult:
     """Minimise ``||F_l(P, K(theta))||_inf`` over a fixed-structure controller subject to internal stability.
 
     Each start runs the stabilisation phase (spectral abscissa minimised by nonsmooth BFGS) and then the
-    hybrid optimiser (nonsmooth BFGS, tangent-program polishing; see the module docstring).
+    hybrid optimiser (nonsmooth BFGS, tangent-program polishing; see the module docstring); then rounds of
+    basin hopping from the best end point run the same two phases from random points around it. Starts and
+    hops are seeded and drawn in the plant-derived variables, so they are the same in any units of the plant's
+    signals, and they run through ``executor``. Their cost is ``starts`` plus ``hops`` per round (at least
+    two rounds) times that of one start.
 
     Parameters
     ----------
@@ -1557,10 +1579,15 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
         their inputs must add up to ``nmeas`` and outputs to ``ncon``.
     nmeas, ncon : int
         Number of measurements y (last outputs of P) and controls u (last inputs of P).
-    starts : int
+    starts : int, optional
         Number of starts: the blocks' current values plus ``starts - 1`` seeded random controllers whose
         size is drawn log-uniformly over the decades of loop gain that the plant makes plausible (module
-        docstring, "Units"), around the start's size when that is larger.
+        docstring, "Units"), around the start's size when that is larger. Default :data:`DEFAULT_STARTS`.
+    hops : int, optional
+        Runs per round of basin hopping from the best end point (:func:`_hop`; 0: none). The rounds end when
+        two in a row gain less than 0.1 % (at most six rounds). Two runs that agree to round-off (the plant in
+        other units, on another CPU) can split at one accept/reject decision into local minima a few percent
+        apart; hopping takes both on to the lower one. Default :data:`DEFAULT_HOPS`.
     seed : int or numpy.random.Generator seed
     n_jobs : int
         Local worker processes for the starts when no ``executor`` is given (blocks must then pickle: no
@@ -1642,28 +1669,81 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int = 1, seed=0,
     scale, decades = _variable_scale(S, P, nmeas, ncon, theta0, free)
     ch = Channel(P, nmeas, ncon, name="hinf", exact_peak=True)
     prob = _Problem(S, [ch], [(P, nmeas, ncon)], free, scale, relative_stop=True, start_decades=decades)
+    starts = DEFAULT_STARTS if starts is None else int(starts)
+    hops = DEFAULT_HOPS if hops is None else int(hops)
     results = run_starts(prob, theta0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, executor=executor,
                          max_iter=max_iter, tol=tol, time_limit_s=time_limit_s, progress=progress)
-    verified, failures = [], []
-    for r in results:
-        if isinstance(r, StartFailure):
-            failures.append(r)
-            verified.append((np.inf, None, None, None, np.nan, (np.nan, np.nan)))
-            continue
-        th, _, hist, pred, secs = r
-        g, wpk = lti.hinfnorm(closed_loop(P, nmeas, ncon, S.ss(th)))
-        verified.append((g, th, hist, wpk, pred, secs))
+    verify = _Verifier(P, nmeas, ncon, S)
+    verified = [verify(r) for r in results]
     gammas = [v[0] for v in verified]
     if not np.isfinite(min(gammas)):
-        _raise_unstabilised(failures, len(results))
-    best = int(np.argmin(gammas))
-    g, th, hist, wpk, pred, _ = verified[best]
+        _raise_unstabilised([r for r in results if isinstance(r, StartFailure)], len(results))
+    best = verified[int(np.argmin(gammas))]
+    hopped = []
+    if hops > 0:
+        best, hopped = _hop(prob, best, lower, upper, verify, hops=hops, seed=seed, n_jobs=n_jobs,
+                            executor=executor, max_iter=max_iter, tol=tol, time_limit_s=time_limit_s)
+    g, th, hist, wpk, pred, _ = best
     S.set_values(th)
+    runs = verified + hopped
     return HinfstructResult(gamma=float(g), controller=S.ss(th), params=dict(zip(names, map(float, th))),
                             history=list(map(float, hist)), starts=[float(x) for x in gammas], success=True,
                             structure=S, w_peak=float(wpk), stationarity=float(pred), slope=_slope(prob, th),
                             start_times_s=[float(v[5][0]) for v in verified],
-                            start_cpu_s=[float(v[5][1]) for v in verified])
+                            start_cpu_s=[float(v[5][1]) for v in verified],
+                            hops=[float(v[0]) for v in hopped],
+                            total_cpu_s=float(np.nansum([v[5][1] for v in runs])))
+
+
+class _Verifier:
+    """``(gamma, theta, history, peak frequency, predicted decrease, (wall s, CPU s))`` of one run, gamma the exact
+    closed-loop norm (inf for a :class:`StartFailure`)."""
+
+    def __init__(self, P, nmeas, ncon, S):
+        self.P, self.nmeas, self.ncon, self.S = P, nmeas, ncon, S
+
+    def __call__(self, r):
+        if isinstance(r, StartFailure):
+            return (np.inf, None, None, None, np.nan, (np.nan, np.nan))
+        th, _, hist, pred, secs = r
+        g, wpk = lti.hinfnorm(closed_loop(self.P, self.nmeas, self.ncon, self.S.ss(th)))
+        return (g, th, hist, wpk, pred, secs)
+
+
+def _hop(prob: _Problem, best, lower, upper, verify, *, hops, seed, n_jobs, executor, max_iter, tol, time_limit_s):
+    """Basin hopping from the best end point: rounds of ``hops`` runs (stabilisation, then the hybrid optimiser)
+    from random points around it, at the distances :data:`HOP_SIZES` relative to its rms size in the scaled
+    variables; a round's best replaces it when lower by more than ``tol`` relative, and the hopping ends after
+    :data:`HOP_PATIENCE` rounds in a row that gain less than :data:`HOP_GAIN` (or :data:`HOP_ROUNDS` rounds).
+
+    Why: two runs that agree to round-off (the same problem in other units, on another CPU, with another number
+    of BLAS threads) can split at one accept/reject decision and end in different local minima a few percent
+    apart; hopping from either end point reaches the lower of the nearby minima, so the result no longer hangs
+    on that decision. The perturbations are drawn in the plant-derived variables from a seed of their own, so
+    they are the same numbers in any units. Returns the new best and every hop's verified entry."""
+    rng = np.random.default_rng(task_seeds(seed, 2)[1])
+    hopped = []
+    idle = 0
+    for _ in range(HOP_ROUNDS):
+        x = prob.x_of(best[1])
+        size = _rms(x, 1.0)
+        thetas = []
+        for k in range(hops):
+            u = rng.standard_normal(x.size)
+            thetas.append(np.clip(prob.theta(x + HOP_SIZES[k % len(HOP_SIZES)] * size * u / _rms(u, 1e-300)),
+                                  lower, upper))
+        seeds = task_seeds(int(rng.integers(1 << 31)), hops)
+        jobs = [(prob, th, lower, upper, max_iter, tol, time_limit_s, HYBRID_SUB_ITER, True, s)
+                for th, s in zip(thetas, seeds)]
+        found = [verify(r) for r in map_tasks(_run_start, jobs, executor=executor, n_jobs=n_jobs or 1)]
+        hopped += found
+        top = min(found, key=lambda v: v[0])
+        idle = 0 if top[0] < best[0] * (1.0 - HOP_GAIN) else idle + 1
+        if top[0] < best[0] * (1.0 - tol):
+            best = top
+        if idle >= HOP_PATIENCE:
+            break
+    return best, hopped
 
 
 def _slope(prob: _Problem, theta) -> float:
