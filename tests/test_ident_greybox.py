@@ -36,6 +36,23 @@ def test_c2d_zoh_delay_matches_fine_simulation_with_fractional_delay():
     np.testing.assert_allclose(y, yf, atol=1e-10)
 
 
+def test_c2d_zoh_delay_per_path_matches_fine_simulation():
+    """One input driving two paths, 1.2 and 3.7 samples late: the sum of each path's held input delayed on a 100x
+    finer grid; one tapped line of the input (the longer delay's four samples), not one per path."""
+    G = ct.ss(ct.tf([[[2.0, 3.0], [1.0]]], [[[1.0, 2.0, 5.0], [0.05, 1.0]]]))
+    dt, delays = 0.02, (0.024, 0.074)
+    u = np.random.default_rng(0).standard_normal(300)
+    H = c2d_zoh_delay(G, dt, delays)
+    assert H.ninputs == 1 and H.nstates == 3 + 4
+    y = ct.forced_response(H, U=u).outputs
+    yf = 0
+    for i, d in enumerate(delays):
+        k = int(round(d / dt * 100))
+        uf = np.concatenate([np.zeros(k), np.repeat(u, 100)[:-k]])
+        yf = yf + ct.forced_response(c2d_zoh(G[:, i], dt / 100), U=uf).outputs[::100]
+    np.testing.assert_allclose(y, yf, atol=1e-10)
+
+
 def test_rigid_rig_structure_matches_published_transfer_function_form():
     m = rigid_rig_structure()
     th = m.values()
