@@ -176,8 +176,8 @@ def test_twin_ulog_yaw_plant_matches_the_truth_where_the_log_holds_it(px4_models
 def test_twin_ulog_yaw_plant_is_the_twins_true_linearisation(px4_models):
     """The whole band: nu-gap 0.026-0.028 at seeds 0-2 (0.18 without the mount: PX4's 40 Hz gyro filter passes
     the mount's 58.7 Hz mode, where the yaw plant's gain is 0.23 and a yaw record, behind MC_YAW_TQ_CUTOFF's 2 Hz
-    low-pass, holds no information; 0.06 with the mount but one motor path at the mean of 24 and 28 ms, whose
-    gain at 55 Hz is 23 % above the two paths' mean)."""
+    low-pass, holds no information; 0.06 at seed 0 with the mount but one motor path at the mean of 24 and 28 ms:
+    at 55 Hz the two paths' mean is 23 % below it in gain)."""
     m = px4_models.models["yaw"]["plant-indirect"]
     assert nugap(m.model.with_delay(), _truth(px4_models, "yaw")) < 0.05
 
