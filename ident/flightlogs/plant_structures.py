@@ -3,7 +3,9 @@ shapes the indirect route (:func:`rotorlab.ident.flightlogs.identify.identify_pl
 autopilot's known controller.
 
 Registry :data:`STRUCTURES`: axis -> constructor; :func:`plant_structure` picks by axis and adds the autopilot's
-gyro low-pass (known from the log's parameters) as an output filter.
+gyro low-pass (known from the log's parameters) as an output filter, the motors' lag and delay fitted on other axes
+(yaw: one motor path per rotor group, :data:`SHARES_MOTORS`), and the IMU's elastic mount where the vehicle's
+description gives it (:func:`with_imu_mount`).
 
 Roll and pitch (:func:`rate_plant_structure`): a differential thrust command ``u`` moves each rotor's speed through
 the motor's lag ``tau_s`` after the transport delay ``delay_s``; the thrust difference times the arm is a torque,
