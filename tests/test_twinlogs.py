@@ -182,6 +182,24 @@ def test_twin_ulog_yaw_plant_is_the_twins_true_linearisation(px4_models):
     assert nugap(m.model.with_delay(), _truth(px4_models, "yaw")) < 0.05
 
 
+def test_cli_ident_takes_the_imu_mount(px4_flight, tmp_path, capsys):
+    """``rotorlab ident FLIGHT.ulg --imu-mount HZ,DAMPING``: the mount in the written plant model; a malformed
+    value exits 2 naming the option, what it expects and what it got."""
+    import json
+
+    from rotorlab.cli import main
+
+    path, _ = px4_flight
+    hz, zeta = _imu_mount()
+    assert main(["ident", str(path), "--axis", "roll", "--imu-mount", f"{hz},{zeta}", "--out", str(tmp_path / "m")]) == 0
+    params = json.loads((tmp_path / "m" / "roll.json").read_text())["settings"]["extra"]["params"]
+    assert (params["mount_hz"], params["mount_zeta"]) == (hz, zeta)
+    capsys.readouterr()
+    assert main(["ident", str(path), "--imu-mount", "60", "--out", str(tmp_path / "n")]) == 2
+    err = capsys.readouterr().err
+    assert "--imu-mount expects HZ,DAMPING" in err and "'60'" in err and "Traceback" not in err
+
+
 AP_OPTIONS = {"sid_f_start_hz": 2.0, "sid_magnitude_dps": 20.0}
 
 
