@@ -200,13 +200,15 @@ def test_cli_ident_takes_the_imu_mount(px4_flight, tmp_path, capsys):
     assert "--imu-mount expects HZ,DAMPING" in err and "'60'" in err and "Traceback" not in err
 
 
-AP_OPTIONS = {"sid_f_start_hz": 2.0, "sid_magnitude_dps": 20.0}
+AP_OPTIONS = {"sid_f_start_hz": 1.0, "sid_magnitude_dps": 20.0}
 
 
 @pytest.fixture(scope="module")
 def ap_flight(tmp_path_factory):
-    # SYSID's chirp from 2 Hz at 20 deg/s: a 0.5 Hz start at 30 deg/s swings the free-flying vehicle into its slow
-    # translational modes (below 1.5 rad/s), which the rate plant's structure does not hold (roll nu-gap 0.069)
+    # SYSID's chirp from 1 Hz at 20 deg/s: a 0.5 Hz start at 30 deg/s swings the free-flying vehicle into its slow
+    # translational modes (below 1.5 rad/s), which the rate plant's structure does not hold (roll nu-gap 0.069); a
+    # 2 Hz start (12.6 rad/s) leaves yaw's drag pole (0.41 1/s) and spin-up zero (2.4 1/s) below the excited band
+    # (yaw nu-gap 0.050-0.075, the pole fitted at its bound 0)
     path = fly_twin_log(tmp_path_factory.mktemp("twin") / "twin.bin", duration_s=FLIGHT_S, seed=0, options=AP_OPTIONS)
     return path, read_flight_log(path)
 
@@ -222,11 +224,12 @@ def test_twin_dataflash_reads_back_with_its_sysid_windows(ap_flight):
         assert got.start_s == pytest.approx(t0 + start, abs=0.005) and got.stop_s == pytest.approx(t0 + stop, abs=0.01)
     assert [m.label for m in log.modes] == ["ALT_HOLD", "SYSTEMID"] * 3 + ["ALT_HOLD"]
     assert log.params["SID_T_REC"] == pytest.approx(plan[0][2] - plan[0][1] - ARDUPILOT_SYSID_DELAY_S)
-    assert log.params["SID_F_START_HZ"] == 2.0 and log.params["SCHED_LOOP_RATE"] == 250.0
-    # RATE in deg/s read as rad/s: the set-point's swing in the chirp is the chirp's 20 deg/s and the hold's share
+    assert log.params["SID_F_START_HZ"] == 1.0 and log.params["SCHED_LOOP_RATE"] == 250.0
+    # RATE in deg/s read as rad/s: the set-point's swing in the chirp is the chirp's 20 deg/s and the attitude hold's
+    # share (30 deg/s in all from a 1 Hz start at seed 0); a unit slip would be 57 times off
     sp = log.series("roll", "rate_sp")
     on = (sp.t_s > t0 + plan[0][1] + 5.0) & (sp.t_s < t0 + plan[0][2] - 2.0)
-    assert 0.5 * 20 * D2R < np.max(np.abs(sp.values[on])) < 1.5 * 20 * D2R
+    assert 0.5 * 20 * D2R < np.max(np.abs(sp.values[on])) < 2.0 * 20 * D2R
 
 
 @pytest.fixture(scope="module")
@@ -240,24 +243,17 @@ def ap_models(ap_flight, tmp_path_factory):
 def test_twin_dataflash_plant_through_the_controller_is_the_twins_true_linearisation(axis, ap_models):
     """The same from the twin-written DataFlash file, through ArduPilot's AC_PID rebuilt from its PARM messages,
     INS_GYRO_FILTER's 20 Hz low-pass and the vehicle file's IMU mount in the structure: measured nu-gaps
-    0.001-0.005 (roll and pitch) at seeds 0-2 (0.015-0.017 without the mount), the delay within 1 ms of the
-    vehicle file's."""
+    0.009-0.018 (roll) and 0.012-0.020 (pitch) at seeds 0-2, the delay within 0.3 ms of the vehicle file's."""
     m = ap_models.models[axis]["plant-indirect"]
-    assert nugap(m.model.with_delay(), _truth(ap_models, axis)) < 0.02
+    assert nugap(m.model.with_delay(), _truth(ap_models, axis)) < 0.05
     assert m.extra["params"]["tau_s"] == pytest.approx(0.0369, rel=0.05)
     assert m.extra["params"]["delay_s"] == pytest.approx(DELAY_S[axis], abs=0.0015)
 
 
-@pytest.mark.xfail(strict=True, reason="DataFlash yaw: nu-gap 0.054 at seed 0 (0.052-0.075 at seeds 0-2), the drag "
-                                       "pole at its bound 0: SYSID's chirp from 2 Hz (12.6 rad/s) leaves the pole "
-                                       "(0.41 1/s) and the spin-up zero (2.4 1/s) below the excited band. The "
-                                       "0.045 it scored before was the optimiser stopping near the structure's "
-                                       "start values (cost 0.0045-0.0067 against the minimum 0.0037) on a "
-                                       "simulation that lost seven digits in transfer-function form")
 def test_twin_dataflash_yaw_plant_is_the_twins_true_linearisation(ap_models):
-    """Yaw from the DataFlash file through AC_PID: the yaw structure within nu-gap 0.05 of the twin's true
-    linearisation (measured 0.045-0.047 at seeds 0-2); ArduPilot's 20 Hz gyro filter takes the IMU mount mode
-    (58.7 Hz) that PX4's 40 Hz filter passes down to where it no longer decides the nu-gap."""
+    """Yaw from the DataFlash file through AC_PID: the yaw structure (two motor paths, the IMU mount) within
+    nu-gap 0.05 of the twin's true linearisation: measured 0.012-0.019 at seeds 0-2, the spin-up zero within 4 %
+    of q / J_r."""
     m = ap_models.models["yaw"]["plant-indirect"]
     assert nugap(m.model.with_delay(), _truth(ap_models, "yaw")) < 0.05
     _yaw_physics(m, ap_models)
