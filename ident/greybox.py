@@ -109,7 +109,7 @@ class GreyBoxModel:
     """
 
     def __init__(self, name: str, params: Sequence[Param], build: Callable[[dict], ct.StateSpace],
-                 delay_s: float | str | Param = 0.0, inputs: Sequence[str] | None = None,
+                 delay_s: float | str | Param | Sequence = 0.0, inputs: Sequence[str] | None = None,
                  outputs: Sequence[str] | None = None, output_filter: Callable[[float], ct.StateSpace] | None = None):
         params = list(params)
         paths = isinstance(delay_s, (list, tuple))
