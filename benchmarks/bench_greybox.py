@@ -1,5 +1,5 @@
-"""Grey-box identification timings: OE fits (open and closed loop), H-inf matching, and the lfilter-based
-simulation against scipy's dlsim. Prints measured times and ratios; run ``python benchmarks/bench_greybox.py``."""
+"""Grey-box identification timings: OE fits (open and closed loop), H-inf matching, and the fits' simulation
+(impulse response and convolution) against scipy's dlsim. Prints measured times and ratios; run ``python benchmarks/bench_greybox.py``."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ def main():
     t_lf, y1 = best_wall_s(lambda: _lsim(sysd, u[:, None]), 20)
     A, B, C, D = (np.asarray(M) for M in (sysd.A, sysd.B, sysd.C, sysd.D))
     t_dl, (_, y2, _) = best_wall_s(lambda: sig.dlsim((A, B, C, D, dt), u), 5)
-    print(f"simulate {N} samples, {sysd.nstates} states: lfilter {t_lf * 1e3:.2f} ms, dlsim {t_dl * 1e3:.2f} ms "
+    print(f"simulate {N} samples, {sysd.nstates} states: _lsim {t_lf * 1e3:.2f} ms, dlsim {t_dl * 1e3:.2f} ms "
           f"(x{t_dl / t_lf:.0f}); max difference {np.max(np.abs(y1[:, 0] - np.ravel(y2))):.1e}")
 
     y = simulate_greybox(m, u, dt)[:, 0]

@@ -89,9 +89,12 @@ class GreyBoxModel:
     build : callable
         ``build(theta: dict[str, float]) -> control.StateSpace`` (continuous, delay-free). ``theta`` holds
         every parameter, fixed or free.
-    delay_s : float, str or Param
+    delay_s : float, str or Param, or a sequence of them
         Input transport delay: a known value in s, the name of a parameter in ``params`` (``'delay_s'`` or
-        ``'Td'``), or a ``Param`` (added to ``params``).
+        ``'Td'``), or a ``Param`` (added to ``params``). A sequence: one delay per input of ``build``'s system,
+        the paths the one model input drives, each after its own delay (the yaw of a vehicle whose rotor pairs
+        have different delays); :meth:`ss` is then the paths' sum without delays and :meth:`delay_s` the
+        shortest.
     inputs, outputs : sequence of str, optional
         Signal names, for reports and model files.
     output_filter : callable, optional
@@ -106,20 +109,25 @@ class GreyBoxModel:
     """
 
     def __init__(self, name: str, params: Sequence[Param], build: Callable[[dict], ct.StateSpace],
-                 delay_s: float | str | Param = 0.0, inputs: Sequence[str] | None = None,
+                 delay_s: float | str | Param | Sequence = 0.0, inputs: Sequence[str] | None = None,
                  outputs: Sequence[str] | None = None, output_filter: Callable[[float], ct.StateSpace] | None = None):
         params = list(params)
-        if isinstance(delay_s, Param):
-            params.append(delay_s)
-            delay_s = delay_s.name
+        paths = isinstance(delay_s, (list, tuple))
+        delays = list(delay_s) if paths else [delay_s]
+        for i, d in enumerate(delays):
+            if isinstance(d, Param):
+                params.append(d)
+                delays[i] = d.name
         names = [p.name for p in params]
         if len(set(names)) != len(names):
             raise ValueError(f"grey-box model '{name}': duplicate parameter names in {names}")
-        if isinstance(delay_s, str):
-            if delay_s not in names:
-                raise ValueError(f"grey-box model '{name}': delay parameter '{delay_s}' is not one of {names}")
-        elif delay_s < 0:
-            raise ValueError(f"grey-box model '{name}': delay must be >= 0 s, got {delay_s}")
+        for d in delays:
+            if isinstance(d, str):
+                if d not in names:
+                    raise ValueError(f"grey-box model '{name}': delay parameter '{d}' is not one of {names}")
+            elif d < 0:
+                raise ValueError(f"grey-box model '{name}': delay must be >= 0 s, got {d}")
+        delay_s = tuple(delays) if paths else delays[0]
         self.name = name
         self.params = params
         self.build = build
@@ -192,22 +200,34 @@ class GreyBoxModel:
         x_init = np.clip(np.array([base[n] for n in free]), lo, hi)
         return ScaledParams(free, base, lo, hi, x_init, np.where(np.abs(x_init) > 0, np.abs(x_init), 1.0))
 
-    def ss(self, theta: Mapping[str, float] | None = None) -> ct.StateSpace:
-        """Continuous delay-free state-space model at ``theta`` (default: the parameter values)."""
+    def _paths(self, theta: Mapping[str, float] | None) -> ct.StateSpace:
         sys = as_ss(self.build(self._theta(theta)))
         if is_discrete(sys):
             raise ValueError(f"grey-box model '{self.name}': build() must return a continuous model (dt=0)")
         return sys
 
-    def delay_s(self, theta: Mapping[str, float] | None = None) -> float:
-        if isinstance(self.delay, str):
-            return float(self._theta(theta)[self.delay])
-        return float(self.delay)
+    def ss(self, theta: Mapping[str, float] | None = None) -> ct.StateSpace:
+        """Continuous delay-free state-space model at ``theta`` (default: the parameter values); with several
+        delay paths their sum."""
+        sys = self._paths(theta)
+        return _fan_in(sys) if isinstance(self.delay, tuple) else sys
 
-    def discretize(self, dt: float, theta: Mapping[str, float] | None = None) -> ct.StateSpace:
-        """Exact ZOH model at ``dt`` with the (possibly fractional) delay, then the output filter; plant states
-        first."""
-        return self.filtered(c2d_zoh_delay(self.ss(theta), dt, self.delay_s(theta)))
+    def path_delays_s(self, theta: Mapping[str, float] | None = None) -> list[float]:
+        """The delay of each input path, s (one entry without paths)."""
+        th = self._theta(theta)
+        delays = self.delay if isinstance(self.delay, tuple) else (self.delay,)
+        return [float(th[d]) if isinstance(d, str) else float(d) for d in delays]
+
+    def delay_s(self, theta: Mapping[str, float] | None = None) -> float:
+        """The transport delay, s; with several paths the shortest."""
+        return min(self.path_delays_s(theta))
+
+    def discretize(self, dt: float, theta: Mapping[str, float] | None = None, less_s: float = 0.0) -> ct.StateSpace:
+        """Exact ZOH model at ``dt`` with the (possibly fractional) delay, less ``less_s`` (whole samples a caller
+        keeps apart), then the output filter; plant states first."""
+        if not isinstance(self.delay, tuple):
+            return self.filtered(c2d_zoh_delay(self.ss(theta), dt, self.delay_s(theta) - less_s))
+        return self.filtered(c2d_zoh_delay(self._paths(theta), dt, [d - less_s for d in self.path_delays_s(theta)]))
 
     def filtered(self, sysd: ct.StateSpace) -> ct.StateSpace:
         """``sysd`` (discrete) followed by the output filter at its sample time; ``sysd`` when there is none."""
@@ -301,7 +321,7 @@ class GreyBoxResult:
         """The fit as an ``IdentifiedModel`` at ``dt``: ZOH plant with the whole-sample part of the delay as
         ``delay`` samples; a fractional remainder stays inside ``sys`` (ZOH with input delay)."""
         d = int(np.floor(self.delay_s / self.dt + 1e-9))
-        sysd = self.model.filtered(c2d_zoh_delay(self.sys, self.dt, self.delay_s - d * self.dt))
+        sysd = self.model.discretize(self.dt, less_s=d * self.dt)
         return IdentifiedModel(sys=sysd, delay=d, method="oe", settings={"structure": self.model.name},
                                extra={"params": dict(self.params), "ci95": dict(self.ci95),
                                       "fit_vaf": self.fit_vaf.tolist()})
@@ -320,40 +340,53 @@ class GreyBoxResult:
         return "\n".join(lines)
 
 
+def _fan_in(sys: ct.StateSpace) -> ct.StateSpace:
+    """``sys`` with its inputs driven by one input (a multi-path model's paths)."""
+    m = sys.ninputs
+    return ct.ss(sys.A, np.asarray(sys.B) @ np.ones((m, 1)), sys.C, np.asarray(sys.D) @ np.ones((m, 1)), sys.dt)
+
+
 # -- simulation ---------------------------------------------------------------------------------------
+
+def _observability_sequence(A: np.ndarray, C: np.ndarray, N: int) -> np.ndarray:
+    """``(N, p, n)``: ``C A^k`` for ``k = 0 .. N-1``, by doubling (``log2 N`` matrix products)."""
+    O = C[None, :, :]
+    P = A
+    with np.errstate(over="ignore", invalid="ignore"):  # a trial parameter that destabilises the model diverges
+        while O.shape[0] < N:
+            O = np.concatenate([O, O @ P], axis=0)
+            P = P @ P
+    return O[:N]
+
 
 def _lsim(sysd: ct.StateSpace, u: np.ndarray) -> np.ndarray:
     """Zero-state response of a small discrete system, ``u`` (N, m) -> (N, p).
 
-    Through ``scipy.signal.lfilter`` on each input-output transfer function: the fits call this hundreds
-    of times on thousands of samples, and lfilter is a compiled loop where ``dlsim`` is a Python one.
-    The models here have at most a few tens of states, well inside what polynomial form represents.
+    The impulse response ``D, C B, C A B, ...`` (:func:`_observability_sequence`) convolved with the input
+    (``scipy.signal.oaconvolve``): vectorised, where ``dlsim`` is a Python loop, and accurate to rounding, where
+    the transfer-function form (``ss2tf`` and ``lfilter``) is not: the characteristic polynomial of a model with
+    a delay line (a Jordan block at z = 0) and close poles loses about seven digits, which the fits' finite-
+    difference Jacobians (steps of 1e-8) then read as the response's slope.
     """
     A, B, C, D = (np.asarray(M, dtype=float) for M in (sysd.A, sysd.B, sysd.C, sysd.D))
     p, m = D.shape
-    y = np.zeros((u.shape[0], p))
-    if A.shape[0] == 0:
+    N = u.shape[0]
+    if A.shape[0] == 0 or N == 0:
         return u @ D.T
-    for j in range(m):
-        num, den = sig.ss2tf(A, B, C, D, input=j)
-        for i in range(p):
-            y[:, i] += sig.lfilter(num[i], den, u[:, j])
+    y = np.zeros((N, p))
+    with np.errstate(over="ignore", invalid="ignore"):
+        h = np.concatenate([D[None], _observability_sequence(A, C, N - 1) @ B], axis=0)
+        for j in range(m):
+            for i in range(p):
+                y[:, i] += sig.oaconvolve(h[:, i, j], u[:, j])[:N]
     return y
 
 
 def _free_response_basis(sysd: ct.StateSpace, nx: int, N: int) -> np.ndarray:
-    """``(N, p, nx)`` outputs of the unforced system from each unit initial state ``e_i`` (first ``nx``)."""
+    """``(N, p, nx)`` outputs of the unforced system from each unit initial state ``e_i`` (first ``nx``):
+    ``C A^k e_i``."""
     A, C = np.asarray(sysd.A, float), np.asarray(sysd.C, float)
-    p = C.shape[0]
-    out = np.empty((N, p, nx))
-    imp = np.zeros(N + 1)
-    imp[0] = 1.0
-    for i in range(nx):
-        # the impulse response of (A, e_i, C, 0) is C A^(k-1) e_i for k >= 1: the free response shifted by one
-        num, den = sig.ss2tf(A, np.eye(A.shape[0])[:, [i]], C, np.zeros((p, 1)))
-        for r in range(p):
-            out[:, r, i] = sig.lfilter(num[r], den, imp)[1:]
-    return out
+    return _observability_sequence(A, C, N)[:, :, :nx]
 
 
 def simulate_greybox(model: GreyBoxModel, u, dt: float, theta: Mapping[str, float] | None = None,

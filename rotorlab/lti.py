@@ -301,10 +301,25 @@ def c2d_zoh_delay(sys, dt: float, delay_s: float = 0.0) -> ct.StateSpace:
 
     State order: the plant states first (so an initial state of ``sys`` maps onto the first ``n`` states),
     then ``u[k-d-1]`` (only when ``f > 0``), then the ``d``-sample input shift register.
+
+    ``delay_s`` may be a sequence, one delay per input of ``sys``: one input ``u`` drives every input of ``sys``,
+    input ``i`` after ``delay_s[i]`` (several paths of one command with their own transport delays); the result
+    has the one input, the plant states first, then one line of ``u``'s past samples that every path taps.
+
+    Examples
+    --------
+    >>> G = c2d_zoh_delay(ct.ss(ct.tf([1.0], [0.1, 1.0])), 0.01, 0.025)
+    >>> G.nstates  # the lag, u[k-3] for the half sample, and the two-sample shift register
+    4
+    >>> H = c2d_zoh_delay(ct.ss([[-10.0]], [[10.0, 10.0]], [[1.0]], [[0.0, 0.0]]), 0.01, [0.0, 0.02])
+    >>> H.nstates, H.ninputs  # one lag, the two-sample line of u that the second path reads
+    (3, 1)
     """
     sys = as_ss(sys)
     if is_discrete(sys):
         raise ValueError("c2d_zoh_delay needs a continuous system")
+    if np.ndim(delay_s):
+        return _c2d_zoh_taps(sys, dt, [float(d) for d in delay_s])
     if delay_s < 0:
         raise ValueError(f"delay must be non-negative, got {delay_s} s")
     A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
@@ -342,3 +357,51 @@ def c2d_zoh_delay(sys, dt: float, delay_s: float = 0.0) -> ct.StateSpace:
     Bcl = np.vstack([np.zeros((nh, m)), Bl])
     Ccl = np.hstack([Ch, Dh @ Cl])
     return ct.ss(Acl, Bcl, Ccl, np.zeros_like(D), dt)
+
+
+def _c2d_zoh_taps(sys: ct.StateSpace, dt: float, delays_s) -> ct.StateSpace:
+    """:func:`c2d_zoh_delay` of ``sys`` whose inputs are driven by one input, input ``i`` after ``delays_s[i]``:
+    one tapped delay line of the input's past samples, each input column reading its taps (the fewest states)."""
+    A, B, C, D = (np.asarray(M, dtype=float) for M in (sys.A, sys.B, sys.C, sys.D))
+    n, m = B.shape
+    if len(delays_s) != m:
+        raise ValueError(f"{len(delays_s)} delays for a system with {m} inputs")
+    if min(delays_s) < 0:
+        raise ValueError(f"delays must be non-negative, got {list(delays_s)} s")
+
+    def phi_gamma(b, tau):
+        M = np.zeros((n + 1, n + 1))
+        M[:n, :n] = A
+        M[:n, n:] = b
+        E = sla.expm(M * tau)
+        return E[:n, :n], E[:n, n:]
+
+    taps = []  # (tap j: the input sample u[k - j], its column into x, its column into y)
+    for i, delay in enumerate(delays_s):
+        b, dcol = B[:, [i]], D[:, [i]]
+        k = delay / dt
+        d = int(np.floor(k + 1e-9))
+        f = k - d if k - d >= 1e-9 else 0.0
+        if f == 0.0:
+            taps += [(d, phi_gamma(b, dt)[1], dcol)]
+        else:
+            Pa, G0 = phi_gamma(b, (1.0 - f) * dt)
+            taps += [(d, G0, np.zeros_like(dcol)), (d + 1, Pa @ phi_gamma(b, f * dt)[1], dcol)]
+    L = max(j for j, *_ in taps)
+    Ad = np.zeros((n + L, n + L))
+    Ad[:n, :n] = sla.expm(A * dt)
+    Bd = np.zeros((n + L, 1))
+    Cd = np.zeros((C.shape[0], n + L))
+    Cd[:, :n] = C
+    Dd = np.zeros((C.shape[0], 1))
+    if L:
+        Bd[n, 0] = 1.0  # u[k] -> u[k-1]
+        Ad[n + 1:, n:-1] = np.eye(L - 1)  # u[k-j] -> u[k-j-1]
+    for j, g, dcol in taps:
+        if j == 0:
+            Bd[:n] += g
+            Dd += dcol
+        else:
+            Ad[:n, [n + j - 1]] += g
+            Cd[:, [n + j - 1]] += dcol
+    return ct.ss(Ad, Bd, Cd, Dd, dt)

@@ -66,3 +66,34 @@ def test_motors_given_are_fixed():
     m = plant_structure("yaw", motors={"tau_s": 0.0368, "delay_s": 0.0266})
     assert m.free == ["K", "z_rad_s", "a_rad_s"]
     assert m.values()["tau_s"] == 0.0368 and m.values()["delay_s"] == 0.0266
+
+
+def test_yaw_motor_paths_are_the_mean_of_the_rotor_groups_each_with_its_delay():
+    """Two motor paths (a plus frame's roll pair and pitch pair): the discrete model is the mean of two
+    single-path structures, each discretised exactly with its own delay, and the paths' parameters are fixed."""
+    paths = [{"tau_s": 0.0369, "delay_s": 0.024}, {"tau_s": 0.0371, "delay_s": 0.0285}]
+    m = plant_structure("yaw", motors=paths)
+    assert m.free == ["K", "z_rad_s", "a_rad_s"] and m.delay_s() == 0.024
+    theta = {"K": 7.5, "z_rad_s": 2.434, "a_rad_s": 0.41}
+    got = m.discretize(DT, theta)
+    one = [plant_structure("yaw", motors=p).discretize(DT, theta) for p in paths]
+    for w in (0.5, 30.0, 300.0, 700.0):
+        zw = np.exp(1j * w * DT)
+        want = 0.5 * sum(complex(ct.evalfr(g, zw)) for g in one)
+        assert complex(ct.evalfr(got, zw)) == pytest.approx(want, rel=1e-9)
+    # the delay-free sum is the formula with the paths' mean lag
+    formula = lambda s: theta["K"] * (1 + s / theta["z_rad_s"]) / (s + theta["a_rad_s"]) * np.mean(  # noqa: E731
+        [1 / (p["tau_s"] * s + 1) for p in paths])
+    assert complex(ct.evalfr(m.ss(theta), 300j)) == pytest.approx(formula(300j), rel=1e-9)
+
+
+def test_imu_mount_is_the_base_excited_spring_damper_at_the_output():
+    m = plant_structure("roll", imu_mount=(60.0, 0.15))
+    assert m.free == ["K", "tau_s", "delay_s"]
+    theta = FORMULAS["rate-plant"][0]
+    w_m = 2 * np.pi * 60.0
+    for w in (3.0, 100.0, w_m, 1000.0):
+        s = 1j * w
+        mount = (2 * 0.15 * w_m * s + w_m**2) / (s**2 + 2 * 0.15 * w_m * s + w_m**2)
+        assert complex(ct.evalfr(m.ss(theta), s)) == pytest.approx(FORMULAS["rate-plant"][1](s, theta) * mount,
+                                                                   rel=1e-9)

@@ -108,8 +108,8 @@ def autopilot_gyro_filter(log: FlightLog):
     return lambda dt: filters.butter2_ss(1.0 / dt, cutoff_hz)
 
 
-def _motors(res: FlightLogResult, axis: str) -> dict | None:
-    """The motors' lag and delay for ``axis``'s structure: the mean over the axes it shares them with
+def _motors(res: FlightLogResult, axis: str) -> list | None:
+    """The motors' lag and delay for ``axis``'s structure, one motor path per axis it shares them with
     (:data:`~.plant_structures.SHARES_MOTORS`) that this run fitted through the controller; ``None`` (estimated on
     ``axis`` itself, with a note) where there are none."""
     fitted = [res.models[a]["plant-indirect"].extra["params"] for a in SHARES_MOTORS.get(axis, ())
@@ -119,18 +119,19 @@ def _motors(res: FlightLogResult, axis: str) -> dict | None:
             res.notes.append(f"{axis}: motor lag and delay estimated on {axis} alone (identify "
                              f"{' and '.join(SHARES_MOTORS[axis])} with it to take them from there)")
         return None
-    return {k: float(np.mean([p[k] for p in fitted])) for k in MOTOR_PARAMS}
+    return [{k: float(p[k]) for k in MOTOR_PARAMS} for p in fitted]
 
 
 def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: float = 0.4, rate_hz=None,
                         allow_truncated: bool = False, controller=autopilot_controller,
-                        report: bool = True) -> FlightLogResult:
+                        report: bool = True, imu_mount: tuple | None = None) -> FlightLogResult:
     """Identify every axis of ``axes`` in a flight log and write the results to ``out_dir``.
 
     Per axis: the closed loop (rate_sp -> rate), the plant (rate_out -> rate) where the log has the rate-loop
     output, and the plant through the known controller where ``controller(log, axis)`` gives one (the axis's
     structure of :mod:`~rotorlab.ident.flightlogs.plant_structures`, the log's gyro low-pass in it
-    (:func:`autopilot_gyro_filter`), yaw with the motors' lag and delay of the roll and pitch fits). An axis whose
+    (:func:`autopilot_gyro_filter`), yaw with the motors' lag and delay of the roll and pitch fits, one motor path
+    each, and the IMU's mount where ``imu_mount`` gives it). An axis whose
     closed loop cannot be identified ends the run (DataError); a plant model that cannot be fitted is a note. Files:
     ``<axis>.json`` (the plant: through the controller where known, else direct; else the closed loop), one
     ``<axis>-<kind>.json`` per model, and ``report.html`` with its PNGs. Units are recorded in every model file.
@@ -151,6 +152,11 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
         Identification rate (default: the slowest signal of each record, at most :data:`MAX_IDENT_HZ`).
     controller : callable or None
         ``controller(log, axis) -> LTI or None``.
+    imu_mount : (float, float), optional
+        The IMU mount's natural frequency, Hz, and damping ratio, from the vehicle's description (a twin's
+        ``[imu] mount_frequency_hz`` and ``mount_damping_ratio``): the mode in every axis's plant structure
+        (:func:`~.plant_structures.with_imu_mount`). A rate-loop record does not determine it; where the gyro
+        low-pass passes it (PX4's 40 Hz against a 60 Hz mount) the plant models miss it without.
 
     Raises
     ------
@@ -224,8 +230,8 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
         C = controller(log, axis) if controller is not None else None
         if C is not None:
             try:
-                models["plant-indirect"] = identify_plant_indirect(
-                    rec, split_cl, C, plant_structure(axis, autopilot_gyro_filter(log), _motors(res, axis)))
+                structure = plant_structure(axis, autopilot_gyro_filter(log), _motors(res, axis), imu_mount)
+                models["plant-indirect"] = identify_plant_indirect(rec, split_cl, C, structure)
                 models["plant-indirect"].extra["controller_params_mapped"] = [m.text() for m in mapped]
             except (DataError, ValueError) as exc:
                 res.notes.append(f"{axis}: no plant through the controller: {exc}")

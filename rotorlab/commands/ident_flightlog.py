@@ -27,6 +27,9 @@ def add_arguments(p) -> None:
                    help="fraction of the airborne (or excitation) time held out at its end to score the models")
     g.add_argument("--rate-hz", type=float, default=None,
                    help="identification rate (default: the slowest logged signal of each axis)")
+    g.add_argument("--imu-mount", default=None, metavar="HZ,DAMPING",
+                   help="the IMU mount's natural frequency (Hz) and damping ratio, from the vehicle's description "
+                        "(a twin's [imu] mount_frequency_hz, mount_damping_ratio): the mode in every axis's plant")
     g.add_argument("--allow-truncated", action="store_true",
                    help="read a ULog cut short (power loss) up to its last whole message")
     g.add_argument("--fleet", action="store_true",
@@ -54,6 +57,18 @@ def _windows(items):
     return out or None
 
 
+def _imu_mount(text):
+    if text is None:
+        return None
+    try:
+        hz, zeta = (float(x) for x in text.split(","))
+    except ValueError:
+        raise CLIError(f"--imu-mount expects HZ,DAMPING (e.g. 60,0.15), got {text!r}") from None
+    if not (hz > 0 and zeta >= 0):
+        raise CLIError(f"--imu-mount expects a frequency > 0 Hz and a damping ratio >= 0, got {text!r}")
+    return hz, zeta
+
+
 def run_flight_log(args) -> int:
     from rotorlab.atomic import check_output
     from rotorlab.ident.flightlogs.names import AXES
@@ -69,12 +84,15 @@ def run_flight_log(args) -> int:
         raise CLIError(f"--holdout must be in (0, 1), got {args.holdout}")
     if args.rate_hz is not None and not args.rate_hz > 0:
         raise CLIError(f"--rate-hz must be > 0, got {args.rate_hz}")
+    imu_mount = _imu_mount(args.imu_mount)
     if args.fleet:
+        if imu_mount is not None:
+            raise CLIError("--imu-mount is one vehicle's; a fleet's logs may come from several (leave it out)")
         return _run_fleet(args, axes, Path(args.out))
     # a flight log writes a folder (one model file per axis and the report), never over the log itself
     out = check_output(args.out, [args.log], what="folder")
     res = identify_flight_log(args.log, out, axes, windows=_windows(args.window), holdout=args.holdout,
-                              rate_hz=args.rate_hz, allow_truncated=args.allow_truncated)
+                              rate_hz=args.rate_hz, allow_truncated=args.allow_truncated, imu_mount=imu_mount)
     log = res.log
     print(f"{log.path}: {log.autopilot} {log.version} ({log.format}), airborne {log.airborne_time_s():.1f} s "
           f"({log.airborne_source})")
