@@ -81,8 +81,12 @@ def linear_axis(autopilot: str, params: dict, axis: str, plants: dict) -> dict:
             out[loop] = {"stable": False}
             continue
         t, y = _step(Tcl, size, dt)
-        m = step_metrics(t, y[:, 0 if loop == "rate" else 1], size)
-        out[loop] = {"stable": True, "step": size, **m, "command_peak": float(np.max(np.abs(y[:, -1])))}
+        yl = y[:, 0 if loop == "rate" else 1]
+        m = step_metrics(t, yl, size)
+        # the tracking error's integral per unit of step (s): one figure for speed and overshoot together, where a
+        # slow loop without overshoot and a fast one with a little are otherwise not comparable
+        out[loop] = {"stable": True, "step": size, **m, "iae_per_step_s": float(np.sum(np.abs(1.0 - yl / size)) * dt),
+                     "command_peak": float(np.max(np.abs(y[:, -1])))}
     if not out["attitude"]["stable"]:  # the disturbance acts on the same closed loop
         out["disturbance"] = {"stable": False}
         return out
