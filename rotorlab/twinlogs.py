@@ -190,6 +190,13 @@ def _columns(result, params: dict):
     return t, get
 
 
+def _flight(result):
+    """(scenario notes, flown parameters, time s, columns) of an ``autopilot-sysid`` run, for both writers."""
+    notes = _notes(result)  # first: it refuses a run of another scenario
+    params = _flown_params(result)
+    return (notes, params, *_columns(result, params))
+
+
 def run_to_ulog(result, path) -> Path:
     """Write an ``autopilot-sysid`` run (a :class:`~rotorlab.sim.runner.RunResult`) as a PX4 ULog at ``path``.
 
@@ -204,9 +211,7 @@ def run_to_ulog(result, path) -> Path:
     """
     from rotorlab.ident.flightlogs.writers import write_ulog
 
-    notes = _notes(result)
-    params = _flown_params(result)
-    t, c = _columns(result, params)
+    notes, params, t, c = _flight(result)
     us = (T0_US + np.round(t * 1e6)).astype(np.uint64)
     f32 = lambda x: np.asarray(x, np.float32)  # noqa: E731 - uORB logs floats
     q = _quat(c["phi"], c["theta"], c["psi"])
@@ -261,9 +266,7 @@ def run_to_dataflash(result, path) -> Path:
     """
     from rotorlab.ident.flightlogs.writers import write_dataflash
 
-    notes = _notes(result)
-    params = _flown_params(result)
-    t, c = _columns(result, params)
+    notes, params, t, c = _flight(result)
     us = (T0_US + np.round(t * 1e6)).astype(np.int64)
     rate_rows = list(zip(us.tolist(), c["p_ref"].tolist(), c["p"].tolist(), (c["u_lat"] / 100).tolist(),
                          c["q_ref"].tolist(), c["q"].tolist(), (c["u_lon"] / 100).tolist(),

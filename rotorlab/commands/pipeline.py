@@ -85,9 +85,17 @@ def run(args) -> int:
     opts = PipelineOptions(vehicle=vehicle, out=out, level=level, seed=args.seed, executor=args.executor,
                            workers=args.workers, progress=not args.no_progress, n_boot=args.n_boot, n_mc=args.n_mc,
                            controller=controller)
+    return _run(run_pipeline, opts, out)
+
+
+def _run(pipeline, opts, out: Path, *after) -> int:
+    """Run ``pipeline(opts)`` and print its verdict (and ``after(out)``); bad input is a CLIError, Ctrl-C keeps the
+    completed stages and exits 130."""
     try:
-        run_pipeline(opts)
+        pipeline(opts)
         print_verdict(out)
+        for show in after:
+            show(out)
     except RotorlabError as exc:
         raise CLIError(str(exc)) from None
     except KeyboardInterrupt:
@@ -119,16 +127,7 @@ def run_log(args, level: str) -> int:
     opts = LogPipelineOptions(out=out, level=level, seed=args.seed,
                               executor=args.executor, workers=args.workers, progress=not args.no_progress,
                               log=log.resolve(), vehicle_file=vehicle, autopilot=args.autopilot)
-    try:
-        run_log_pipeline(opts)
-        print_verdict(out)
-        _print_parameter_file(out)
-    except RotorlabError as exc:
-        raise CLIError(str(exc)) from None
-    except KeyboardInterrupt:
-        print(f"\ninterrupted: completed stages are kept in {out}; run the same command again to resume")
-        return 130
-    return 0
+    return _run(run_log_pipeline, opts, out, _print_parameter_file)
 
 
 def _print_parameter_file(out: Path) -> None:
