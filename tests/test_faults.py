@@ -799,14 +799,15 @@ def test_the_run_folder_lock_is_never_held_by_a_forked_child(tmp_path):
             "from rotorlab.pipeline.runner import run_folder_lock\n"
             f"with run_folder_lock(Path({str(out)!r})):\n"
             "    pid = os.fork()\n"
-            "    if pid == 0:\n        print('child running', flush=True)\n        time.sleep(120)\n"
+            "    if pid == 0:\n        os.write(1, b'child running\\n')\n        time.sleep(120)\n"
             "        os._exit(0)\n"
-            "    print(pid, flush=True)\n    time.sleep(120)\n")
+            "    os.write(1, f'{pid}\\n'.encode())\n    time.sleep(120)\n")
     p = subprocess.Popen([sys.executable, "-c", code], env=ENV, stdout=subprocess.PIPE, text=True,
                          start_new_session=True)
     try:
         # both lines before the kill: the child has returned from fork (its at-fork handlers have run) and lives;
-        # on a loaded machine the parent may print first while the child has not been scheduled yet
+        # on a loaded machine the parent may print first while the child has not been scheduled yet (one write a
+        # line: a pipe write that small is atomic, the two lines never interleave)
         lines = [p.stdout.readline().strip() for _ in range(2)]
         assert "child running" in lines, lines
         child = int(next(x for x in lines if x != "child running"))
