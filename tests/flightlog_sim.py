@@ -109,9 +109,15 @@ def pilot_input(n, rng, amp=0.5, lp_hz=2.0):
     return sig.lfilter(b, a, out)
 
 
-def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True, pilot=False) -> Flight:
+def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True, pilot=False, heading_hold_p=0.0,
+        disturbance=0.0) -> Flight:
     """Fly: 2 s on the ground, then roll, pitch, yaw excitation in turn (``excite_s`` each), 2 s to land.
-    ``pilot``: no autotune; every axis flown by :func:`pilot_input` over the whole airborne time instead."""
+    ``pilot``: no autotune; every axis flown by :func:`pilot_input` over the whole airborne time instead.
+    ``heading_hold_p`` (1/s): where positive, the yaw rate set-point is ``P (heading set-point - heading)`` (an
+    angle mode's heading hold), the set-point integrating the yaw set-point otherwise flown, the heading the
+    measured rate, so the rate set-point is fed back from the measurement. ``disturbance``: RMS (rate-loop output
+    units) of a torque disturbance, white noise low-passed at 1 Hz, added to every axis's plant input (drawn from
+    its own generator, so the set-points and sensor noise of a seed stay as without it)."""
     rng = np.random.default_rng(seed)
     t_ground = 2.0
     total = t_ground + 3 * (excite_s + pause_s) + 2.0
@@ -137,7 +143,14 @@ def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True, pilot=False
     thrust = np.where(landed, 0.1, 0.5)
     sub = int(GYRO_HZ / LOOP_HZ)
     out, gyro = {}, {}
+    drng = np.random.default_rng([seed, 1])
     for axis in AXES:
+        dist = np.zeros(n)
+        if disturbance > 0:
+            dist = sig.lfilter(*sig.butter(1, 1.0, fs=LOOP_HZ), drng.standard_normal(n))
+            dist *= disturbance / dist.std()
+        hold = axis == "yaw" and heading_hold_p > 0
+        heading_sp, heading = np.cumsum(sp[axis]) / LOOP_HZ, 0.0
         Pd = ct.c2d(ct.ss(plant_tf(axis)), 1 / GYRO_HZ)
         A, B, C = (np.asarray(M, float) for M in (Pd.A, Pd.B, Pd.C))
         C = C[0]
@@ -148,9 +161,12 @@ def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True, pilot=False
         for k in range(n):
             y_meas = float(C @ x) + noise * rng.standard_normal()
             ys[k * sub] = y_meas
+            if hold:
+                sp[axis][k] = heading_hold_p * (heading_sp[k] - heading)
+                heading += y_meas / LOOP_HZ
             us[k] = pid.step(sp[axis][k], y_meas)
             u_hist.append(us[k])
-            u_applied = u_hist[-1 - DELAY_SAMPLES]
+            u_applied = u_hist[-1 - DELAY_SAMPLES] + dist[k]
             for j in range(sub):
                 x = A @ x + B[:, 0] * u_applied
                 if j < sub - 1:
@@ -222,3 +238,10 @@ def dataflash_messages(f: Flight, t0_us=1_000_000, rate_every=1, sysid=True):
     if sysid:
         msgs |= {"SIDS": ("QB", ["TimeUS", "Ax"], sids), "SIDD": ("Qf", ["TimeUS", "Time"], sidd)}
     return msgs
+
+
+def true_closed_loop_d(axis, dt=1 / LOOP_HZ) -> ct.StateSpace:
+    """The truth of the rate loop: rate set-point -> rate, the plant (:func:`true_plant_d`) closed with the PID's
+    ``(r, y) -> u`` law, at the loop rate."""
+    K = controller(axis).lti()
+    return ct.feedback(true_plant_d(axis, dt), K[0, 1], sign=1) * K[0, 0]
