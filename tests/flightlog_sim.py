@@ -93,8 +93,31 @@ class Flight:
     excite_s: dict
 
 
-def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True) -> Flight:
-    """Fly: 2 s on the ground, then roll, pitch, yaw excitation in turn (``excite_s`` each), 2 s to land."""
+def pilot_input(n, rng, amp=0.5, lp_hz=2.0):
+    """Pilot-like stick set-point: bursts (3-6 s) of held levels (0.2-1.2 s each, uniform in +-``amp``) between
+    quiet stretches (3-10 s), smoothed by a second-order low-pass at ``lp_hz`` as a hand on a stick is."""
+    out = np.zeros(n)
+    k = int(rng.integers(int(1 * LOOP_HZ), int(3 * LOOP_HZ)))
+    while k < n:
+        end = min(n, k + int(rng.uniform(3.0, 6.0) * LOOP_HZ))
+        while k < end:
+            m = int(rng.uniform(0.2, 1.2) * LOOP_HZ)
+            out[k:min(k + m, end)] = rng.uniform(-amp, amp)
+            k += m
+        k = end + int(rng.uniform(3.0, 10.0) * LOOP_HZ)
+    b, a = sig.butter(2, lp_hz, fs=LOOP_HZ)
+    return sig.lfilter(b, a, out)
+
+
+def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True, pilot=False, heading_hold_p=0.0,
+        disturbance=0.0) -> Flight:
+    """Fly: 2 s on the ground, then roll, pitch, yaw excitation in turn (``excite_s`` each), 2 s to land.
+    ``pilot``: no autotune; every axis flown by :func:`pilot_input` over the whole airborne time instead.
+    ``heading_hold_p`` (1/s): where positive, the yaw rate set-point is ``P (heading set-point - heading)`` (an
+    angle mode's heading hold), the set-point integrating the yaw set-point otherwise flown, the heading the
+    measured rate, so the rate set-point is fed back from the measurement. ``disturbance``: RMS (rate-loop output
+    units) of a torque disturbance, white noise low-passed at 1 Hz, added to every axis's plant input (drawn from
+    its own generator, so the set-points and sensor noise of a seed stay as without it)."""
     rng = np.random.default_rng(seed)
     t_ground = 2.0
     total = t_ground + 3 * (excite_s + pause_s) + 2.0
@@ -107,6 +130,10 @@ def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True) -> Flight:
         m = (t >= t0) & (t < t0 + excite_s)
         spans[axis] = (t0, t0 + excite_s)
         sp[axis] = np.zeros(n)
+        if pilot:
+            sp[axis] = pilot_input(n, rng)
+            state[:] = 0
+            continue
         if excite:
             sp[axis][m] = excitation(int(m.sum()), rng, amp=1.0 if axis != "yaw" else 0.5)
         state[m] = 2 + 2 * i  # autotune legacy layout: 2 roll, 4 pitch, 6 yaw; pauses 3, 5, 7
@@ -116,7 +143,14 @@ def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True) -> Flight:
     thrust = np.where(landed, 0.1, 0.5)
     sub = int(GYRO_HZ / LOOP_HZ)
     out, gyro = {}, {}
+    drng = np.random.default_rng([seed, 1])
     for axis in AXES:
+        dist = np.zeros(n)
+        if disturbance > 0:
+            dist = sig.lfilter(*sig.butter(1, 1.0, fs=LOOP_HZ), drng.standard_normal(n))
+            dist *= disturbance / dist.std()
+        hold = axis == "yaw" and heading_hold_p > 0
+        heading_sp, heading = np.cumsum(sp[axis]) / LOOP_HZ, 0.0
         Pd = ct.c2d(ct.ss(plant_tf(axis)), 1 / GYRO_HZ)
         A, B, C = (np.asarray(M, float) for M in (Pd.A, Pd.B, Pd.C))
         C = C[0]
@@ -127,9 +161,12 @@ def fly(seed=0, excite_s=15.0, pause_s=2.0, noise=0.01, excite=True) -> Flight:
         for k in range(n):
             y_meas = float(C @ x) + noise * rng.standard_normal()
             ys[k * sub] = y_meas
+            if hold:
+                sp[axis][k] = heading_hold_p * (heading_sp[k] - heading)
+                heading += y_meas / LOOP_HZ
             us[k] = pid.step(sp[axis][k], y_meas)
             u_hist.append(us[k])
-            u_applied = u_hist[-1 - DELAY_SAMPLES]
+            u_applied = u_hist[-1 - DELAY_SAMPLES] + dist[k]
             for j in range(sub):
                 x = A @ x + B[:, 0] * u_applied
                 if j < sub - 1:
@@ -176,11 +213,11 @@ def px4_params():
     return p
 
 
-def dataflash_messages(f: Flight, t0_us=1_000_000):
-    """The flight as ArduCopter messages: RATE at the loop rate (deg/s), EV arm/takeoff/land, MODE, SIDS/SIDD
-    for each axis's excitation."""
+def dataflash_messages(f: Flight, t0_us=1_000_000, rate_every=1, sysid=True):
+    """The flight as ArduCopter messages: RATE at the loop rate over ``rate_every`` (deg/s), EV arm/takeoff/land,
+    MODE, and where ``sysid`` SIDS/SIDD for each axis's excitation."""
     deg = 180 / np.pi
-    idx = np.arange(0, len(f.t_loop_s))
+    idx = np.arange(0, len(f.t_loop_s), rate_every)
     g = f.rate_gyro
     sub = int(GYRO_HZ / LOOP_HZ)
     rows = [(int(t0_us + round(f.t_loop_s[k] * 1e6)),
@@ -193,10 +230,18 @@ def dataflash_messages(f: Flight, t0_us=1_000_000):
         r0, r1 = f.excite_s[axis]
         sids.append((int(t0_us + r0 * 1e6), 7 + i))  # SID_AXIS 7, 8, 9: rate roll, pitch, yaw
         sidd += [(int(t0_us + round(t * 1e6)), float(t - r0)) for t in f.t_loop_s[(f.t_loop_s >= r0) & (f.t_loop_s < r1)]]
-    return {
+    msgs = {
         "RATE": ("Qfffffffff", ["TimeUS", "RDes", "R", "ROut", "PDes", "P", "POut", "YDes", "Y", "YOut"], rows),
         "EV": ("QB", ["TimeUS", "Id"], ev),
         "MODE": ("QMBB", ["TimeUS", "Mode", "ModeNum", "Rsn"], [(t0_us, 1, 1, 0)]),
-        "SIDS": ("QB", ["TimeUS", "Ax"], sids),
-        "SIDD": ("Qf", ["TimeUS", "Time"], sidd),
     }
+    if sysid:
+        msgs |= {"SIDS": ("QB", ["TimeUS", "Ax"], sids), "SIDD": ("Qf", ["TimeUS", "Time"], sidd)}
+    return msgs
+
+
+def true_closed_loop_d(axis, dt=1 / LOOP_HZ) -> ct.StateSpace:
+    """The truth of the rate loop: rate set-point -> rate, the plant (:func:`true_plant_d`) closed with the PID's
+    ``(r, y) -> u`` law, at the loop rate."""
+    K = controller(axis).lti()
+    return ct.feedback(true_plant_d(axis, dt), K[0, 1], sign=1) * K[0, 0]

@@ -2,8 +2,8 @@
 set-point -> rate), and the plant recovered through the known controller (indirect route).
 
 The direct fits use the project's methods (:data:`rotorlab.ident.methods.METHODS`): a few orders and methods
-are fitted on the longest identification window and the one that predicts the other identification data best
-is kept (never the held-out data, which only scores the result). The indirect fit takes the controller as a
+are fitted on the identification windows and the one that predicts the identification data best is kept (never
+the held-out data, which only scores the result). The indirect fit takes the controller as a
 python-control LTI system, so the autopilot's law (``rotorlab.autopilots``) plugs in from outside:
 ``identify_plant_indirect(record, split, controller_lti)``.
 """
@@ -178,6 +178,27 @@ def _delay(u, y, max_delay: int = 10) -> int | None:
         return None  # no significant lag found
 
 
+def _radius(m) -> float:
+    return float(np.max(np.abs(np.linalg.eigvals(np.asarray(m.sys.A, float))), initial=0.0))
+
+
+def _refit_scored(name, settings, d, joined, m, inner_vaf, label, kind, rec, u, y, runs):
+    """(model, score, label) of a closed-loop candidate: refitted on every identification window joined, scored
+    by the refit's free-run VAF on them; the fit on 75 % of the longest window where the refit leaves the unit
+    circle.
+
+    The model delivered is the one scored. On a pilot's log a candidate's fit on part of one window and its
+    refit on the whole flight can differ by tens of points (a set-point fed back from the measured attitude in
+    heading hold makes the few-parameter fits lean on which stretch they see), so ranking the part's fit chose
+    models whose refit did not reproduce even the data it was fitted on. The fits minimise an equation or
+    projection error, not the free-run error, and have at most a few tens of parameters against hundreds of
+    samples, so the free-run VAF on the fitted data ranks them without rewarding the larger order."""
+    M = _fit(name, *joined, rec.dt, d, settings)
+    if _radius(M) > MAX_POLE_RADIUS[kind]:
+        return m, _pooled_vaf(m, u, y, runs), f"{label} (refit unstable; the 75 % fit, VAF on the rest {inner_vaf:.1f})"
+    return M, _pooled_vaf(M, u, y, runs), f"{label} (the 75 % fit's VAF on the rest {inner_vaf:.1f})"
+
+
 def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candidates=None) -> AxisModel:
     """Identify ``kind`` (closed-loop: rate_sp -> rate; plant: rate_out -> rate) of one axis.
 
@@ -186,7 +207,9 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
     75 % of the longest identification window and scored on the rest
     of the identification windows; candidates with a pole outside the unit circle (on it for a plant, which
     may integrate) are dropped; the best is refitted on all identification windows joined (each about its mean)
-    and scored on the held-out windows.
+    and scored on the held-out windows. A closed loop's candidates are each refitted on all identification
+    windows and ranked by that refit's free-run VAF on them (the model delivered is the one ranked), the score on
+    the rest kept in ``tried``'s labels.
 
     Raises
     ------
@@ -222,6 +245,7 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
         delays = sorted({d, max(d - 1, 0), max(d - 2, 0), 0}, reverse=True)
     else:
         delays = [delay or 0]
+    joined = (np.concatenate([_centred(u, r) for r in runs]), np.concatenate([_centred(y, r) for r in runs]))
     for name, settings in (c for cs in sets for c in cs):
         if best is not None and candidates is None and (name, settings) in FALLBACK[kind]:
             break
@@ -229,29 +253,34 @@ def identify_direct(rec: Record, split: Split, kind: str = "closed-loop", candid
             label = f"{name} " + " ".join(f"{a}={b}" for a, b in settings.items()) + f" delay={d}"
             try:
                 m = _fit(name, uf, yf, rec.dt, d, settings)
-                radius = float(np.max(np.abs(np.linalg.eigvals(np.asarray(m.sys.A, float))), initial=0.0))
+                radius = _radius(m)
                 if radius > MAX_POLE_RADIUS[kind]:
                     tried.append((f"{label}: pole radius {radius:.4f} (unstable {kind} model)", float("nan")))
                     continue
                 score = _pooled_vaf(m, u, y, inner)
+                final = m
+                if kind.startswith("closed-loop"):
+                    final, score, label = _refit_scored(name, settings, d, joined, m, score, label, kind, rec, u, y,
+                                                        runs)
             except (DataError, ValueError, np.linalg.LinAlgError) as exc:
                 tried.append((f"{label}: {exc}", float("nan")))
                 continue
             tried.append((label, score))
             if best is None or score > best[2]:
-                best = (name, settings, score, d)
+                best = (name, settings, score, d, final)
     if best is None:
         raise DataError(f"no {kind} model of the {rec.axis} axis could be fitted: "
                         + "; ".join(t for t, _ in tried))
     delay = best[3]
-    # the refit takes every identification window, each about its own mean, joined end to end: the seams cost a
-    # few samples of misfit, the extra data (pilot inputs come in bursts) is worth more
-    model = _fit(best[0], np.concatenate([_centred(u, r) for r in runs]),
-                 np.concatenate([_centred(y, r) for r in runs]), rec.dt, delay, best[1])
-    radius = float(np.max(np.abs(np.linalg.eigvals(np.asarray(model.sys.A, float))), initial=0.0))
-    if radius > MAX_POLE_RADIUS[kind]:
-        # the refit crossed the unit circle: keep the candidate fit that passed the check
-        model = _fit(best[0], uf, yf, rec.dt, delay, best[1])
+    if kind.startswith("closed-loop"):
+        model = best[4]
+    else:
+        # the refit takes every identification window, each about its own mean, joined end to end: the seams
+        # cost a few samples of misfit, the extra data (pilot inputs come in bursts) is worth more
+        model = _fit(best[0], *joined, rec.dt, delay, best[1])
+        if _radius(model) > MAX_POLE_RADIUS[kind]:
+            # the refit crossed the unit circle: keep the candidate fit that passed the check
+            model = best[4]
     v, pred = holdout_prediction(model, rec, u_name, y_name, split.holdout)
     return AxisModel(rec.axis, kind, model, u_name, y_name, {u_name: rec.units[u_name], y_name: rec.units[y_name]},
                      rec.dt, split, v, tried, pred)

@@ -17,7 +17,7 @@ from rotorlab.errors import DataError
 from .flightlog import FlightLog, Interval, Record
 
 __all__ = ["Window", "Split", "split_windows", "select_windows", "band_stats", "band_stats_many", "MIN_RMS",
-           "GROUND_GUARD_S", "holdout_excitation"]
+           "GROUND_GUARD_S", "MIN_WINDOW_SAMPLES", "holdout_excitation"]
 
 # The least excitation an input must carry in the band (RMS, its unit): 0.05 rad/s (3 deg/s) of rate set-point is
 # above what a hovering attitude loop commands from sensor noise and well below a pilot's stick input.
@@ -26,6 +26,10 @@ MIN_RMS = {"rate_sp": 0.05}
 # plant, and the thrust threshold and land detectors that bound the interval lag them. On the real development logs
 # the last second before a thrust-threshold landing holds the touchdown (gyro RMS 3x the set-point's).
 GROUND_GUARD_S = 1.0
+# The fewest samples of an automatic window: the direct fits need 100 (identify.MIN_SAMPLES: a 20-sample past and a
+# 10-sample future leave too few block-Hankel rows below that), so a window of a slow log (4 s of a 21 Hz RATE
+# message is 84 samples) is widened to this rather than chosen and then dropped by the fit
+MIN_WINDOW_SAMPLES = 128
 
 
 @dataclass(frozen=True)
@@ -187,6 +191,29 @@ def holdout_excitation(split: Split) -> tuple[float, float]:
             float(np.average([w.coherence for w in ws], weights=d)))
 
 
+def log_excited(log: FlightLog, rec: Record) -> bool:
+    """Whether the autopilot logged excitation windows for ``rec``'s axis (autotune, SYSID)."""
+    return any(i.label == rec.axis for i in log.excitation)
+
+
+def _whole_intervals(ident_iv, keep, rec: Record, u_name: str, band, min_power_fraction, min_coherence,
+                     kind) -> list:
+    """Each identification interval holding a kept window ``(a, b, power, coherence)``, whole, with the kept
+    windows' mean power and coherence."""
+    out = []
+    for iv in ident_iv:
+        inside = [(p, c) for a, b, p, c in keep if iv.start_s <= rec.t_s[a] and rec.t_s[b - 1] < iv.stop_s]
+        if not inside:
+            continue
+        p, c = (float(np.mean(v)) for v in zip(*inside))
+        out.append(Window(iv.start_s, iv.stop_s,
+                          f"{kind}, pilot inputs: the whole interval before the held-out part ({len(inside)} "
+                          f"windows with {u_name} power >= {min_power_fraction:.0%} of the best and coherence >= "
+                          f"{min_coherence} in {band[0]:g}-{band[1]:.3g} Hz; mean power {p:.3g}, coherence {c:.2f})",
+                          p, c))
+    return out
+
+
 def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, band_hz=(0.3, 15.0),
                    window_s: float = 4.0, min_coherence: float = 0.3, min_power_fraction: float = 0.01,
                    min_rms=None,
@@ -198,6 +225,11 @@ def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, ban
     ``min_power_fraction`` of the best window's and the mean coherence in the band is at least
     ``min_coherence`` and, where ``min_rms`` gives one for the input (default :data:`MIN_RMS`), the input's RMS in
     the band reaches it; kept windows less than ``window_s`` apart within one candidate interval are merged.
+    A window holds at least :data:`MIN_WINDOW_SAMPLES` samples (``window_s`` widened on a slow log).
+    Without autopilot excitation windows (pilot inputs over the airborne time) the windows only decide whether an
+    airborne interval is excited: each interval with a kept window is one identification window, its whole
+    identification part, since a pilot's inputs come in bursts across the flight and the direct fits need the
+    longest stretches of continuous data, not the bursts cut apart.
     The held-out part is returned whole, one window per candidate interval. ``override``: a list of
     ``(start_s, stop_s)`` used as identification windows instead (the held-out part stays the same; a window
     reaching into it is refused).
@@ -225,12 +257,12 @@ def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, ban
                                     f"{h.start_s:.2f}-{h.stop_s:.2f} s of the {rec.axis} axis; expected windows "
                                     f"before it (or a smaller --holdout)")
         return Split([Window(float(a), float(b), "given by the user") for a, b in override], held)
-    n_win = max(int(round(window_s / rec.dt)), 32)
+    n_win = max(int(round(window_s / rec.dt)), MIN_WINDOW_SAMPLES)
     cands = []
     for iv in ident_iv:
         idx = np.flatnonzero((rec.t_s >= iv.start_s) & (rec.t_s < iv.stop_s))
         if len(idx) < n_win:
-            if len(idx) >= 32:
+            if len(idx) >= 32:  # scored for the report; identify_direct drops what is too short to fit
                 cands.append((idx[0], idx[-1] + 1))
             continue
         starts = list(range(idx[0], idx[-1] + 2 - n_win, n_win // 2))
@@ -258,6 +290,9 @@ def select_windows(log: FlightLog, rec: Record, u_name: str, y_name: str, *, ban
                         f"{y_name} with coherence >= {min_coherence} and RMS >= {floor ** 0.5:g} in {band[0]:g}-"
                         f"{band[1]:.3g} Hz (best coherence {best[1]:.2f}, at RMS {best[0] ** 0.5:.3g}); fly stick inputs "
                         "or an autotune/SYSID excitation, or give --window")
+    if not log_excited(log, rec):
+        return Split(_whole_intervals(ident_iv, keep, rec, u_name, band, min_power_fraction, min_coherence, kind),
+                     held)
     # kept windows closer than one window length are bridged: a short lull between stick inputs costs less
     # than cutting the record the subspace fit needs in two
     merged = []
