@@ -546,6 +546,15 @@ def _children(pid: int) -> list[int]:
     return kids
 
 
+def _wait_for_pool_stage(p, out: Path, timeout_s: float = 600.0) -> None:
+    """Until the pipeline ``p`` writing ``out`` is in a pool stage (past its experiments, two workers forked) or
+    ``timeout_s`` has passed; the callers assert what they need of the state it ends in."""
+    t0 = time.perf_counter()
+    while not ((out / "stages" / "experiments").exists() and len(_children(p.pid)) >= 2) \
+            and time.perf_counter() - t0 < timeout_s:
+        time.sleep(0.05)
+
+
 def _group(pgid: int) -> list[int]:
     """Live processes of the process group ``pgid``."""
     found = []
@@ -872,10 +881,7 @@ def test_sigkill_of_a_pipeline_leaves_no_process_and_the_rerun_resumes_with_iden
     p = subprocess.Popen([*cmd, "--out", str(out)], env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                          start_new_session=True)
     try:
-        t0 = time.perf_counter()
-        while not ((out / "stages" / "experiments").exists() and len(_children(p.pid)) >= 2) \
-                and time.perf_counter() - t0 < 600:
-            time.sleep(0.05)
+        _wait_for_pool_stage(p, out)
         assert p.poll() is None and len(_children(p.pid)) >= 2, "no pool stage caught running"
         os.kill(p.pid, signal.SIGKILL)
         p.wait()
@@ -1178,10 +1184,7 @@ def test_sigterm_to_a_pipeline_stops_its_workers_and_keeps_its_stages(tmp_path):
                           str(out)], env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                          start_new_session=True)
     try:
-        t0 = time.perf_counter()
-        while not ((out / "stages" / "experiments").exists() and len(_children(p.pid)) >= 2) \
-                and time.perf_counter() - t0 < 600:
-            time.sleep(0.05)
+        _wait_for_pool_stage(p, out)
         assert p.poll() is None, "the pipeline ended before a pool stage was caught"
         p.send_signal(signal.SIGTERM)
         text, err = p.communicate(timeout=120)
