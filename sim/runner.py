@@ -68,13 +68,17 @@ def resolve_gains(vehicle, gains) -> GainSet | None:
     return load_gains(gains_path(vehicle, str(gains)))
 
 
+def _specs(controller) -> list:
+    """``controller`` as the list of its specs (one spec, a file, or a list of them)."""
+    return list(controller) if isinstance(controller, (list, tuple)) else [controller]
+
+
 def _run_gains(vehicle, gains, controller) -> GainSet | None:
     """The cascade gains of a run (:func:`resolve_gains`). Where an autopilot's laws fly the attitude, the
     cascade is off (:func:`add_controllers`) and its gains are never read, so a vehicle with no gain set of its
     own (an own vehicle from ``rotorlab vehicle new``, a calibrated twin) flies without one: the flight software
     still holds a cascade, the hand-designed baseline of :func:`rotorlab.vehicles.generic.baseline_gains`."""
-    specs = controller if isinstance(controller, (list, tuple)) else [controller]
-    if gains is None and any(isinstance(s, AutopilotSpec) for s in specs):
+    if gains is None and any(isinstance(s, AutopilotSpec) for s in _specs(controller)):
         try:
             return resolve_gains(vehicle, None)
         except ConfigError:
@@ -122,10 +126,9 @@ def controller_plugins(controller, fs: FlightSoftware) -> list:
     file, an :class:`~rotorlab.sim.control.autopilot.AutopilotSpec` (an autopilot's own laws on all three axes, at
     the flight-software rate), or a list of them (e.g. one per axis). Each sees the flight software's saturation of
     the commands it sets, so an anti-windup compensator acts on exactly the part the flight software cuts off."""
-    specs = controller if isinstance(controller, (list, tuple)) else [controller]
     limits = {"u_lat": fs.u_limit_pct, "u_lon": fs.u_limit_pct, "u_yaw": fs.yaw_u_limit_pct}
     seen, out = set(), []
-    for obj in specs:
+    for obj in _specs(controller):
         if isinstance(obj, AutopilotSpec):
             plugin = AutopilotController(obj, fs.dt, fs.u_limit_pct, fs.yaw_u_limit_pct)
             outputs = plugin.outputs
@@ -147,8 +150,7 @@ def autopilot_dt_s(controller, vehicle_dt_s: float, physics_dt_s: float) -> floa
     (IMU_GYRO_RATEMAX, SCHED_LOOP_RATE) and it is a whole number of physics steps, else the vehicle's. A loop rate
     left at its default does not count (PX4's and ArduPilot's 400 Hz is 2.5 steps of 1 ms); run.json records the
     rate flown and the parameters' rate."""
-    specs = controller if isinstance(controller, (list, tuple)) else [controller]
-    for spec in specs:
+    for spec in _specs(controller):
         if isinstance(spec, AutopilotSpec):
             ap = autopilots.get(spec.autopilot)
             name = ap.LOOP_RATE_PARAM

@@ -282,11 +282,11 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
                          np.full(n_g, DELAY_RANGE_S[0])])
     hi = np.concatenate([np.log(i0 * INERTIA_FACTOR_RANGE[1]), np.full(n_g, math.log(LAG_RANGE_S[1])), rot_hi,
                          np.full(n_g, DELAY_RANGE_S[1])])
-    x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
     free = np.ones(x0.size, dtype=bool)
     if not fit_motors:
         free[n_i:n_i + n_g] = free[n_s:] = False
-        x0 = np.concatenate([np.log(i0), np.log(lag0), np.log(r0), del0])  # held exactly, not clipped
+    # the fitted parameters start inside their bounds; held ones keep their values exactly
+    x0 = np.where(free, np.clip(x0, lo + 1e-9, hi - 1e-9), x0)
 
     def full(xf):
         x = x0.copy()
