@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rotorlab.autopilots.filters import butter2_ss
-from rotorlab.ident.flightlogs.plant_structures import MOTOR_PARAMS, STRUCTURES, plant_structure
+from rotorlab.ident.flightlogs.plant_structures import MOTOR_PARAMS, STRUCTURES, fitted_plant, plant_structure
 from rotorlab.ident.greybox import oe_fit, simulate_greybox
 from rotorlab.lti import c2d_zoh_delay
 
@@ -97,3 +97,23 @@ def test_imu_mount_is_the_base_excited_spring_damper_at_the_output():
         mount = (2 * 0.15 * w_m * s + w_m**2) / (s**2 + 2 * 0.15 * w_m * s + w_m**2)
         assert complex(ct.evalfr(m.ss(theta), s)) == pytest.approx(FORMULAS["rate-plant"][1](s, theta) * mount,
                                                                    rel=1e-9)
+
+
+def test_fitted_plant_merges_the_motor_paths_at_their_mean_delay():
+    """A two-path yaw fit read back as one input: with equal paths it is the one-path structure exactly; with
+    delays 24 and 28 ms it is that plant at 26 ms within cos(w * 2 ms) in gain over 1-30 rad/s; a name no
+    structure has, or missing parameters, give None."""
+    one = {"K": 7.5, "z_rad_s": 2.4, "a_rad_s": 0.41, "tau_s": 0.037, "delay_s": 0.026}
+    w = np.logspace(0.0, np.log10(30.0), 9)
+    G1, d1 = fitted_plant("yaw-rate-plant", one)
+    G2, d2 = fitted_plant("yaw-rate-plant", {**one, "tau2_s": 0.037, "delay2_s": 0.026})
+    assert d1 == d2 == 0.026 and G2.ninputs == 1
+    assert np.allclose(G1(1j * w), G2(1j * w), rtol=1e-12)
+    s = 1j * w
+    paths = {**one, "delay_s": 0.024, "tau2_s": 0.037, "delay2_s": 0.028}
+    G3, d3 = fitted_plant("yaw-rate-plant", paths)
+    assert d3 == pytest.approx(0.026)
+    exact = G1(s) * 0.5 * (np.exp(-s * 0.024) + np.exp(-s * 0.028))
+    assert np.allclose(np.abs(G3(s) * np.exp(-s * d3)), np.abs(exact) / np.cos(w * 0.002), rtol=1e-9)
+    assert fitted_plant("no-such-plant", one) is None
+    assert fitted_plant("yaw-rate-plant", {"K": 7.5}) is None

@@ -6,10 +6,8 @@ parameters (``log.params``, the names of older firmware mapped onto the current 
 
 from __future__ import annotations
 
-import control as ct
-
 from rotorlab import autopilots
-from rotorlab.ident.flightlogs.plant_structures import STRUCTURES
+from rotorlab.ident.flightlogs.plant_structures import fitted_plant
 from rotorlab.ident.flightlogs.run import controller_params, identify_flight_log
 from rotorlab.ident.modelio import load_model
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
@@ -60,10 +58,6 @@ def usable_plant(axis_models: dict) -> tuple[str | None, str]:
                   f"{cl:.1f} %): the twin keeps its inertia and the axis its log gains")
 
 
-# the per-axis plant structures by the name a model file records (settings.structure)
-STRUCTURE_BY_NAME = {m.name: m for m in (make() for make in STRUCTURES.values())}
-
-
 def plant_of(path) -> tuple | None:
     """The plant of a model file written by this stage as ``(G, delay_s)``, normalised torque -> rad/s; None for
     a closed-loop model (the axis had no plant). The plant through the known controller is its axis's grey-box
@@ -76,11 +70,9 @@ def plant_of(path) -> tuple | None:
         return None
     settings = meta.get("settings") or {}
     th = (settings.get("extra") or {}).get("params")
-    structure = STRUCTURE_BY_NAME.get(settings.get("structure"))
-    if th and structure is not None and set(structure.names) <= set(th):
-        # the structure's own continuous plant, without the autopilot's gyro filter (the twin's gyro is the raw one)
-        return ct.ss(structure.build(th)), float(th[structure.delay])
-    return G, float(delay_s)
+    # the structure's own continuous plant, without the autopilot's gyro filter (the twin's gyro is the raw one)
+    fitted = fitted_plant(settings.get("structure"), th) if th else None
+    return fitted if fitted is not None else (G, float(delay_s))
 
 
 def run(ctx: StageContext) -> dict:
