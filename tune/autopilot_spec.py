@@ -41,6 +41,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rotorlab import lti
+from rotorlab.autopilots import filters
 from rotorlab.autopilots import get as get_autopilot
 from rotorlab.tune import goals as G
 from rotorlab.tune.autopilot import AXES, analyse_axis, evaluate_axis
@@ -87,8 +88,7 @@ def _lag_terms(G, delay_s, dt_s, cutoff_hz):
     G = lti.as_ss(G)
     if lti.is_discrete(G):
         G = lti.d2c_zoh(G)
-    # a cutoff of 0 (or at or above Nyquist) switches the autopilot's filter off (filters.butter2_coeffs): no lag
-    filtered = 0.0 < cutoff_hz < 0.5 / dt_s
+    filtered = filters.butter2_on(1.0 / dt_s, cutoff_hz)  # off (0, or at or above Nyquist): no lag
     tau = delay_s + dt_s / 2 + (math.sqrt(2.0) / (2 * math.pi * cutoff_hz) if filtered else 0.0)
     poles = np.linalg.eigvals(np.asarray(G.A, float))
     return tau, poles[(poles.real < 0) & (np.abs(poles) >= 1.0 / (10.0 * tau))]
@@ -175,7 +175,7 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
         pm = math.degrees(2 * math.atan(disk / 2))
         table = "; ".join(f"{b}: disk {a.disk_alpha:.3f}, noise {a.noise_gain:.4g}, peak {a.dist_hinf:.4g}, "
                           f"low-frequency {lf[b]:.4g}" if a.stable else f"{b}: unstable" for b, a in an.items())
-        filt = (f"the {_fmt(cutoff)} Hz gyro filter" if 0.0 < cutoff < 0.5 / dt_s
+        filt = (f"the {_fmt(cutoff)} Hz gyro filter" if filters.butter2_on(1.0 / dt_s, cutoff)
                 else f"no gyro filter (cutoff {_fmt(cutoff)} Hz: off)")
         lines += [
             f"# ---- {axis}: delay {_fmt(delay_s)} s = {_fmt(delay_s / dt_s)} loop periods. Baselines: {table}.",

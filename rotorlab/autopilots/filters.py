@@ -24,7 +24,19 @@ import math
 import control as ct
 import numpy as np
 
-__all__ = ["butter2_coeffs", "butter2_ss", "alpha_lowpass", "alpha_ss"]
+__all__ = ["butter2_on", "butter2_coeffs", "butter2_ss", "alpha_lowpass", "alpha_ss"]
+
+
+def butter2_on(sample_hz: float, cutoff_hz: float) -> bool:
+    """Whether PX4's ``LowPassFilter2p`` filters at all: a cutoff of 0 (or below), or at or above the Nyquist
+    frequency, switches it off (pass-through).
+
+    Examples
+    --------
+    >>> butter2_on(250.0, 30.0), butter2_on(250.0, 0.0), butter2_on(250.0, 125.0)
+    (True, False, False)
+    """
+    return 0.0 < cutoff_hz < sample_hz / 2 and sample_hz > 0
 
 
 def butter2_coeffs(sample_hz: float, cutoff_hz: float) -> tuple[np.ndarray, np.ndarray]:
@@ -36,7 +48,7 @@ def butter2_coeffs(sample_hz: float, cutoff_hz: float) -> tuple[np.ndarray, np.n
     >>> round(float(b.sum() / a.sum()), 12)  # unit DC gain
     1.0
     """
-    if cutoff_hz <= 0 or sample_hz <= 0 or cutoff_hz >= sample_hz / 2:
+    if not butter2_on(sample_hz, cutoff_hz):
         return np.array([1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])
     om = math.tan(math.pi * cutoff_hz / sample_hz)
     k = 2.0 * math.cos(math.pi / 4.0) * om
