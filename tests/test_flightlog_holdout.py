@@ -103,13 +103,18 @@ def test_a_rate_set_point_from_the_angle_loop_is_named(flight, tmp_path):
     share = res.models["roll"]["closed-loop"].extra["angle_loop"]
     assert share["vaf"] > 99.0 and share["P"] == pytest.approx(ANGLE_P, rel=0.01) and abs(share["F"]) < 0.05
     assert share["P_log"] == ANGLE_P
+    # the attitude is the gyro integrated, so the angle law solved for it and differentiated is the rate itself
+    assert share["kinematic_vaf"] > 99.0
     assert [n for n in res.notes if n.startswith("roll: the logged rate set-point is the angle loop's output")]
     doc = json.loads((tmp_path / "a" / "roll-closed-loop.json").read_text())
     assert doc["settings"]["extra"]["angle_loop"]["P"] == pytest.approx(ANGLE_P, rel=0.01)
     # the autotune's square wave on the rate set-point is no function of the attitude: no note
     res = identify_flight_log(_angle_mode_ulog(flight, tmp_path / "b.ulg", False), tmp_path / "b", ["roll"],
                               controller=None, report=False)
-    assert res.models["roll"]["closed-loop"].extra["angle_loop"]["vaf"] < ANGLE_LOOP_VAF
+    level = res.models["roll"]["closed-loop"].extra["angle_loop"]
+    assert level["vaf"] < ANGLE_LOOP_VAF
+    # a level set-point: the inverted law is the rate set-point's derivative over P, no prediction of the rate
+    assert level["kinematic_vaf"] < 50.0
     assert not [n for n in res.notes if "angle loop's output" in n]
 
 
