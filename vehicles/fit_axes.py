@@ -86,6 +86,24 @@ def _axis_groups(groups: dict, axis: str) -> list:
     return [axis] if axis in groups else list(groups)
 
 
+def axis_delay_s(v: VehicleSpec, axis: str) -> float:
+    """The transport delay of ``axis``'s command, s: the mean over the rotors that drive it (in the plus layout
+    roll's pair or pitch's pair alone, yaw every rotor; otherwise every rotor), the delay :func:`calibrate_axes`
+    fits for that axis. Yaw on a plus frame mixes two pairs: two paths ``d +- e`` differ from one at their mean
+    by the factor ``cos(w e)`` in gain and nothing in phase (tuhh-quad, 24 and 28 ms: 0.005 dB at 30 rad/s).
+
+    Examples
+    --------
+    >>> from rotorlab.vehicles import load_vehicle
+    >>> v = load_vehicle("tuhh-quad")
+    >>> [round(axis_delay_s(v, a), 3) for a in ("roll", "pitch", "yaw")]
+    [0.024, 0.028, 0.026]
+    """
+    groups = rotor_groups(v)
+    rotors = [k for g in _axis_groups(groups, axis) for k in groups[g]]
+    return float(np.mean([v.rotor.delay_s[k] for k in rotors]))
+
+
 @dataclasses.dataclass(frozen=True)
 class AxisResidual:
     """Frequency-by-frequency residual of one axis: twin / target, in dB and deg, at ``w_rad_s``."""

@@ -43,13 +43,14 @@ from rotorlab.vehicles.fit_axes import (
     DELAY_RANGE_S,
     INERTIA_INDEX,
     LAG_RANGE_S,
+    axis_delay_s,
     calibrate_axes_staged,
     twin_response,
     twin_scene,
     write_calibrated,
 )
 
-__all__ = ["STAGE", "DEFAULT_VEHICLE", "twin_plant", "target_model", "twin_holdout_vaf"]
+__all__ = ["STAGE", "DEFAULT_VEHICLE", "twin_plant", "twin_plant_continuous", "target_model", "twin_holdout_vaf"]
 
 DEFAULT_VEHICLE = "x500"
 W_START_RAD_S = 1.0  # where the starting twin's gain is compared with the log's: the fit band's lower end, where the
@@ -68,13 +69,20 @@ def target_model(path):
     return None if plant is None else (plant[0] * (1.0 / _SCALE), plant[1])
 
 
+def twin_plant_continuous(v, axis: str) -> tuple[ct.StateSpace, float]:
+    """The twin's plant of ``axis`` (gimbal scene) from normalised torque to rad/s, continuous and without its
+    delay, and the delay of the rotors that drive the axis, s (:func:`rotorlab.vehicles.fit_axes.axis_delay_s`)."""
+    Gd = linearize(twin_scene(v, "gimbal"), v, axis, f"gyro_{axis}", delay=False)
+    # the other axes' states are neither driven nor seen: their integrators would read as closed-loop poles at 1
+    Gc = ct.minreal(lti.d2c_zoh(Gd), tol=MINREAL_TOL, verbose=False)
+    return Gc * _SCALE, axis_delay_s(v, axis)
+
+
 def twin_plant(v, axis: str, dt_s: float) -> ct.StateSpace:
     """The twin's plant of ``axis`` (gimbal scene) from normalised torque to rad/s, discrete at ``dt_s`` with the
-    rotors' transport delay (held input, :func:`rotorlab.lti.c2d_zoh_delay`)."""
-    Gd = linearize(twin_scene(v, "gimbal"), v, axis, f"gyro_{axis}", delay=False)
-    Gc = ct.minreal(lti.d2c_zoh(Gd), tol=MINREAL_TOL, verbose=False)
-    delay_s = float(np.mean(v.rotor.delay_s))
-    return lti.c2d_zoh_delay(Gc * _SCALE, dt_s, delay_s)
+    transport delay of the rotors that drive it (held input, :func:`rotorlab.lti.c2d_zoh_delay`)."""
+    Gc, delay_s = twin_plant_continuous(v, axis)
+    return lti.c2d_zoh_delay(Gc, dt_s, delay_s)
 
 
 def twin_holdout_vaf(log, v, axis: str, dt_s: float, holdout) -> float:

@@ -16,20 +16,17 @@ from __future__ import annotations
 
 import math
 
-import control as ct
 import numpy as np
 
 from rotorlab import autopilots, lti
 from rotorlab.executor import task_seeds
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable, write_log
-from rotorlab.pipeline.stages.log_calibrate import _SCALE, MINREAL_TOL
+from rotorlab.pipeline.stages.log_calibrate import twin_plant_continuous
 from rotorlab.sim.control.autopilot import AutopilotSpec
-from rotorlab.sim.linearize import linearize
 from rotorlab.sim.runner import run_scenario
 from rotorlab.stepresponse import step_metrics
 from rotorlab.tune import autopilot as T
 from rotorlab.vehicles import load_vehicle
-from rotorlab.vehicles.fit_axes import twin_scene
 
 __all__ = ["STAGE", "TWIN_SCENARIOS", "SETS", "linear_axis", "run_twin"]
 
@@ -49,10 +46,7 @@ HORIZON_S = 2.0
 def _axis_plants(v, axis: str, dt_s: float) -> dict:
     """The twin's plants of ``axis`` at the loop period, normalised torque in: ``"rate"`` (rad/s) and
     ``"attitude"`` (``[rate, angle]``, rad/s and rad), each with the rotors' transport delay."""
-    Gd = linearize(twin_scene(v, "gimbal"), v, axis, f"gyro_{axis}", delay=False)
-    # the other axes' states are neither driven nor seen: their integrators would read as closed-loop poles at 1
-    Gc = ct.minreal(lti.d2c_zoh(Gd), tol=MINREAL_TOL, verbose=False) * _SCALE
-    delay_s = float(np.mean(v.rotor.delay_s))
+    Gc, delay_s = twin_plant_continuous(v, axis)
     # the rate loop on the rate alone: the angle is an open integrator there, not a closed-loop pole
     return {"rate": lti.c2d_zoh_delay(Gc, dt_s, delay_s), "attitude": T.axis_plant(Gc, delay_s, dt_s)}
 
