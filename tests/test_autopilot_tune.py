@@ -9,13 +9,14 @@ import tomllib
 import control as ct
 import numpy as np
 import pytest
+from scipy import signal
 from scipy.optimize import brentq
 
 from rotorlab import autopilots, lti
 from rotorlab.cli import main
 from rotorlab.tune import autopilot as T
 from rotorlab.tune import cascade as cas
-from rotorlab.tune.autopilot_spec import crossover_band, generic_spec
+from rotorlab.tune.autopilot_spec import crossover_band, dterm_lag, generic_spec
 from rotorlab.tune.hinfstruct import closed_loop
 from rotorlab.tune.spec import AutopilotSpec, parse_spec
 
@@ -74,6 +75,29 @@ def test_spec_band_is_the_phase_rule_solved_by_hand():
     want = brentq(lambda w: w * te + math.atan(w / MOTOR_RAD_S) - math.radians(75.0), 0.1, 500.0)
     assert hi == pytest.approx(want, rel=1e-9)
     assert lo == pytest.approx(want / 10, rel=1e-9)
+
+
+def test_a_slow_actuator_cancelled_by_the_d_term_widens_the_band_by_the_hand_rule():
+    """A rigid body behind a 120 ms motor lag (the PX4 S250 log's identified plant: 8.3 rad/s, 17 ms of delay) at
+    250 Hz with PX4's laws, gyro filter off: the motor pole alone eats most of the 75 deg (wc_max 14 rad/s). With
+    the D term's zero on it, wc_max solves ``w tau_eff + phi_D(w) = 60 deg``, ``phi_D`` the D path's lag behind
+    s: PX4's second-order Butterworth at IMU_DGYRO_CUTOFF (scipy's design, its phase on the unit circle) and
+    the backward difference's half period ``w dt / 2``."""
+    dt, delay, fc_d = 1 / 250, 0.017, 30.0
+    G = ct.tf([5000.0], [0.12, 1.0, 0.0])
+    p = autopilots.px4.TABLE.defaults() | {"IMU_GYRO_CUTOFF": 0.0, "IMU_DGYRO_CUTOFF": fc_d}
+    b, a = signal.butter(2, fc_d, fs=1 / dt)
+
+    def phi_d(w):
+        return -np.angle(signal.freqz(b, a, worN=[w * dt])[1][0]) + w * dt / 2
+
+    te = delay + dt / 2
+    want = brentq(lambda w: w * te + phi_d(w) - math.radians(60.0), 1.0, math.pi / dt)
+    only_motor = brentq(lambda w: w * te + math.atan(w * 0.12) - math.radians(75.0), 1.0, math.pi / dt)
+    lo, hi = crossover_band(G, delay, dt, 0.0, d_lag=dterm_lag("px4", p, "roll", dt))
+    assert hi == pytest.approx(want, rel=1e-6) and lo == pytest.approx(want / 10, rel=1e-6)
+    assert crossover_band(G, delay, dt, 0.0)[1] == pytest.approx(only_motor, rel=1e-9)
+    assert hi > 2.5 * only_motor
 
 
 @pytest.fixture(scope="module")

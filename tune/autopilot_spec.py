@@ -7,8 +7,13 @@ period, ``F`` the autopilot's gyro low-pass at its cutoff):
 * crossover band at the plant input: ``wc_max`` is where the loop's lag beyond the rigid body's integrator (delay,
   zero-order hold, gyro filter and the actuator's lag, the model's fast poles; :func:`crossover_band`) reaches
   75 deg (a plant phase of -165 deg): the D term's lead at crossover, a few tens of degrees behind the D-term
-  filter, must still leave the 23 deg or more of phase margin a disk margin of 0.4 implies; ``wc_min = wc_max /
-  10`` (yaw's authority, not its phase, sets its crossover, often near the band's low end) (hard);
+  filter, must still leave the 23 deg or more of phase margin a disk margin of 0.4 implies. Where the actuator is
+  slow against the delay the D term is better spent cancelling it: with the PD zero on the slowest actuator pole
+  the loop keeps the lag of the delay, the hold, the gyro filter, the faster poles and the D path's own filter
+  (read from the autopilot's law, :func:`dterm_lag`), and ``wc_max`` is where that reaches 60 deg (loop phase
+  -150 deg: 30 deg of margin, of which the I term's lag takes a few); the band's edge is the higher of the two.
+  ``wc_min = wc_max / 10`` (yaw's authority, not its phase, sets its crossover, often near the band's low end)
+  (hard);
 * balanced disk margin at the plant input (both loops broken there, Seiler et al. 2020) at least
   ``max(0.4, the baselines')``: never less robust than what flies today, and never below 0.4 (about 3.5 dB and
   23 deg at once) (hard);
@@ -37,6 +42,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
+import control as ct
 import numpy as np
 from scipy.optimize import brentq
 
@@ -46,9 +52,12 @@ from rotorlab.autopilots import get as get_autopilot
 from rotorlab.tune import goals as G
 from rotorlab.tune.autopilot import AXES, analyse_axis, evaluate_axis
 
-__all__ = ["PHASE_LIMIT_DEG", "DISK_FLOOR", "BAND_RATIO", "NOISE_FACTOR", "NOISE_DEFAULT", "MATCH_BAND", "crossover_band", "generic_spec"]
+__all__ = ["PHASE_LIMIT_DEG", "CANCELLED_PHASE_LIMIT_DEG", "DISK_FLOOR", "BAND_RATIO", "NOISE_FACTOR", "NOISE_DEFAULT",
+           "MATCH_BAND", "crossover_band", "dterm_lag", "generic_spec"]
 
 PHASE_LIMIT_DEG = -165.0
+# the loop's phase at wc_max with the D term's zero on the slowest actuator pole (its lead spent there)
+CANCELLED_PHASE_LIMIT_DEG = -150.0
 DISK_FLOOR = 0.4
 BAND_RATIO = 10.0
 NOISE_FACTOR = 2.0
@@ -57,7 +66,7 @@ NOISE_DEFAULT = 1.0
 MATCH_BAND = 1.25
 
 
-def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tuple[float, float]:
+def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float, d_lag=None) -> tuple[float, float]:
     """``(wc_min, wc_max)`` rad/s of the rule in the module docstring for the rate model ``G`` (torque -> rate,
     delay removed, continuous or discrete) with input delay ``delay_s``.
 
@@ -66,21 +75,70 @@ def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float) -> tup
     Butterworth low-pass, its low-frequency group delay), and one term per stable pole ``p`` of ``G`` with
     ``|p| >= 1 / (10 tau_eff)``: the actuator (motor lag) and faster dynamics, the actuator bandwidth in the
     model (slower poles are the rigid body's own and its drag, and unstable ones the free vehicle's slow modes,
-    all far below any crossover). ``wc_max`` is where that lag reaches ``-90 - PHASE_LIMIT_DEG`` = 75 deg,
+    all far below any crossover). ``wc_max`` is where that lag reaches ``-90 - PHASE_LIMIT_DEG`` = 75 deg, or,
+    with ``d_lag`` given and a real fast pole, where the lag without the slowest real fast pole (cancelled by the
+    D term's zero) plus ``d_lag(w)`` reaches ``-90 - CANCELLED_PHASE_LIMIT_DEG`` = 60 deg, whichever is higher;
     ``wc_min = wc_max / BAND_RATIO``.
+
+    Parameters
+    ----------
+    d_lag : callable, optional
+        ``d_lag(w_rad_s) -> rad``: the autopilot's D path's lag behind an ideal derivative (:func:`dterm_lag`).
+
+    Examples
+    --------
+    A rigid body behind a 120 ms motor lag and 17 ms of delay at 250 Hz, no gyro filter: the motor pole takes most
+    of the 75 deg; cancelled by the D term (its filter off) the delay alone sets the edge.
+
+    >>> import control as ct
+    >>> G = ct.tf([5000.0], [0.12, 1.0, 0.0])
+    >>> [round(x, 1) for x in crossover_band(G, 0.017, 1 / 250, 0.0)]
+    [1.4, 14.2]
+    >>> [round(x, 1) for x in crossover_band(G, 0.017, 1 / 250, 0.0, d_lag=lambda w: 0.0)]
+    [5.5, 55.1]
     """
     tau, fast = _lag_terms(G, delay_s, dt_s, gyro_cutoff_hz)
-    budget = math.radians(-90.0 - PHASE_LIMIT_DEG)
+    top = math.pi / dt_s
+
+    def edge(lag, budget_deg):
+        budget = math.radians(budget_deg)
+        return top if lag(top) < budget else brentq(lambda w: lag(w) - budget, 1e-6, top)
+
+    def poles_lag(w, poles):
+        return float(np.sum(-np.angle(1.0 / (1.0 - 1j * w / poles))))
+
+    wmax = edge(lambda w: w * tau + poles_lag(w, fast), -90.0 - PHASE_LIMIT_DEG)
+    real = np.flatnonzero(np.abs(fast.imag) <= 1e-9 * np.abs(fast))
+    if d_lag is not None and real.size:
+        rest = np.delete(fast, real[np.argmin(np.abs(fast[real]))])
+        wmax = max(wmax, edge(lambda w: w * tau + poles_lag(w, rest) + d_lag(w), -90.0 - CANCELLED_PHASE_LIMIT_DEG))
+    return wmax / BAND_RATIO, wmax
+
+
+def dterm_lag(autopilot, params: Mapping[str, float], axis: str, dt_s: float):
+    """The lag (rad) of ``axis``'s D path behind an ideal derivative, as a function of ``w`` (rad/s): the
+    autopilot's rate law (written once, ``rotorlab.autopilots``) with only its D gain, from the measured rate,
+    so its D-term filter, its discrete difference and any output filter count as the law computes them.
+
+    Examples
+    --------
+    >>> from rotorlab.autopilots import px4
+    >>> lag = dterm_lag("px4", px4.TABLE.defaults(), "roll", 1 / 400)   # IMU_DGYRO_CUTOFF 20 Hz, second order
+    >>> round(math.degrees(lag(50.0)), 1)
+    37.1
+    """
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    n = ap.axis_names(axis)
+    only_d = {**params, n["P"]: 0.0, n["I"]: 0.0, n["FF"]: 0.0, n["D"]: 1.0}
+    Cd = ap.rate_controller_lti(only_d, axis, dt_s, gyro_filter=False)
 
     def lag(w):
-        return w * tau + float(np.sum(-np.angle(1.0 / (1.0 - 1j * w / fast)))) - budget
+        # the D path on the measured rate is -D s (derivative on the measurement) or -D s on the error: both
+        # -1 times a derivative from the rate input
+        h = -ct.evalfr(Cd[0, 1], np.exp(1j * w * dt_s))
+        return math.pi / 2 - float(np.angle(h))
 
-    hi = math.pi / dt_s
-    if lag(hi) < 0:
-        wmax = hi
-    else:
-        wmax = brentq(lag, 1e-6, hi)
-    return wmax / BAND_RATIO, wmax
+    return lag
 
 
 def _lag_terms(G, delay_s, dt_s, cutoff_hz):
@@ -141,7 +199,7 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
     for axis, (Gp, G_rate, delay_s) in plants.items():
         if axis not in AXES:
             raise ValueError(f"axis must be one of {AXES}, got {axis!r}")
-        lo, hi = crossover_band(G_rate, delay_s, dt_s, cutoff)
+        lo, hi = crossover_band(G_rate, delay_s, dt_s, cutoff, d_lag=dterm_lag(ap, params, axis, dt_s))
         an = {b: analyse_axis(ap, p, axis, Gp) for b, p in baselines.items()}
         ok = {b: a for b, a in an.items() if a.stable}
         robust = ([a.noise_gain for a in ok.values() if a.disk_alpha >= DISK_FLOOR]
