@@ -132,3 +132,32 @@ def test_the_plant_through_the_angle_and_rate_controllers_is_the_truth(flight, t
     assert m.vaf_holdout > 90.0
     assert abs(m.vaf_holdout - models["closed-loop-angle"].vaf_holdout) < 5.0
     assert (tmp_path / "a" / "roll-plant-indirect-angle.json").exists()
+
+
+def test_the_log_pipeline_predicts_an_angle_mode_flight_as_the_identification_does(flight, tmp_path, monkeypatch):
+    """The log pipeline's check of a twin on an angle-mode axis (twin_holdout_vaf with the angle loop) closes the
+    plant the way the identification closed the plant through the angle and rate controllers: given that plant as
+    the twin's, it scores the held-out flight as the identification scored it; and the pipeline takes that plant
+    (usable_plant) where it agrees with the direct model from the attitude set-point."""
+    from rotorlab.ident.flightlogs.plant_structures import fitted_plant
+    from rotorlab.pipeline.stages import log_calibrate
+    from rotorlab.pipeline.stages.log_identify import usable_plant
+
+    path = _angle_mode_ulog(flight, tmp_path / "a.ulg", True)
+    res = identify_flight_log(path, tmp_path / "a", ["roll"], report=False)
+    models = res.models["roll"]
+    m = models["plant-indirect-angle"]
+    monkeypatch.setattr(log_calibrate, "twin_plant_continuous",
+                        lambda v, axis: fitted_plant("rate-angle-plant", m.extra["params"]))
+    windows = [[w.start_s, w.stop_s] for w in m.split.holdout]
+    got = log_calibrate.twin_holdout_vaf(read_flight_log(path), None, "roll", m.dt, windows,
+                                         (m.extra["angle_p"], m.extra["ff"]))
+    assert got == pytest.approx(m.vaf_holdout, abs=1e-6)
+    summary = {k: {"vaf_holdout_pct": x.vaf_holdout, **{e: x.extra[e] for e in ("params", "ci95") if e in x.extra}}
+               for k, x in models.items()}
+    assert usable_plant(summary, "roll")[0] in ("plant-indirect", "plant-indirect-angle")
+    summary.pop("plant-indirect")
+    summary["closed-loop"]["vaf_holdout_pct"] = 100.0  # the plant alone would fall below half of it
+    summary.pop("plant", None)
+    assert usable_plant(summary, "roll")[0] == "plant-indirect-angle"
+    assert usable_plant(summary, "yaw")[0] is None

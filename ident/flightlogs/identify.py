@@ -401,8 +401,9 @@ def identify_plant_indirect(rec: Record, split: Split, controller_lti, structure
                          method="closed-loop-through-controller", settings={"substeps": sub})
     v, pred = holdout_prediction(cl, rec, "rate_sp", "rate", split.holdout)
     return AxisModel(rec.axis, "plant-indirect", plant_d, "rate_out", "rate", {"rate_out": "1", "rate": "rad/s"},
-                     rec.dt, split, v, [], pred, {"params": dict(res.params), "closed_loop": cl,
-                                                  "fit_vaf": float(np.ravel(res.fit_vaf)[0]), "substeps": sub})
+                     rec.dt, split, v, [], pred, {"params": dict(res.params), "ci95": dict(res.ci95),
+                                                  "closed_loop": cl, "fit_vaf": float(np.ravel(res.fit_vaf)[0]),
+                                                  "substeps": sub})
 
 
 def angle_cascade(rate_controller, angle_p: float, ff: float, dt: float) -> ct.StateSpace:
@@ -483,5 +484,6 @@ def identify_plant_through_angle_loop(rec: Record, split: Split, rate_controller
     plant_rate = replace(plant_d, sys=ct.minreal(plant_d.sys[0, :], verbose=False))
     return AxisModel(rec.axis, "plant-indirect-angle", plant_rate, "rate_out", "rate",
                      {"rate_out": "1", "rate": "rad/s"}, rec.dt, split, v, [], pred,
-                     {"params": dict(res.params), "closed_loop": cl, "angle_p": angle_p, "ff": ff,
+                     {"params": dict(res.params), "ci95": dict(res.ci95), "closed_loop": cl, "angle_p": angle_p,
+                      "ff": ff,
                       "fit_vaf": [float(x) for x in np.ravel(res.fit_vaf)], "substeps": sub})

@@ -237,8 +237,8 @@ def plant_structure(axis: str, gyro_filter: Callable[[float], ct.StateSpace] | N
 
 
 def fitted_plant(name: str, params: dict) -> tuple | None:
-    """The continuous plant of a fit of the structure ``name`` (as a model file records it) with its fitted
-    ``params``, as ``(G, delay_s)``: one input, without the gyro filter and the IMU mount the fit saw the rate
+    """The continuous plant of a fit of the structure ``name`` (as a model file records it; ``rate-angle-plant``:
+    its rate output) with its fitted ``params``, as ``(G, delay_s)``: one input, without the gyro filter and the IMU mount the fit saw the rate
     through; None when no structure of :data:`STRUCTURES` has that name or the parameters are not all there.
 
     Motor paths are counted from the parameters (``tau_s``, ``tau2_s``, ...); several paths share the input,
@@ -250,8 +250,12 @@ def fitted_plant(name: str, params: dict) -> tuple | None:
     >>> G, d = fitted_plant("rate-plant", {"K": 400.0, "tau_s": 0.03, "delay_s": 0.006})
     >>> round(d, 3), G.ninputs
     (0.006, 1)
+    >>> fitted_plant("rate-angle-plant", {"K": 400.0, "tau_s": 0.03, "delay_s": 0.006})[0].noutputs
+    1
     """
-    make = next((f for f in STRUCTURES.values() if f().name == name), None)
+    # the rate output of the rate-angle structure (fitted through an angle loop) is the roll/pitch rate plant
+    make = rate_plant_structure if name == "rate-angle-plant" else next(
+        (f for f in STRUCTURES.values() if f().name == name), None)
     if make is None:
         return None
     paths = 1

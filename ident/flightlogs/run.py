@@ -20,7 +20,7 @@ from .plant_structures import MOTOR_PARAMS, SHARES_MOTORS, plant_structure
 from .windows import MIN_RMS, holdout_excitation, select_windows
 
 __all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "autopilot_gyro_filter", "controller_params",
-           "MAX_IDENT_HZ", "angle_loop_share", "ANGLE_LOOP_VAF"]
+           "MAX_IDENT_HZ", "angle_loop_share", "angle_record", "ANGLE_LOOP_VAF"]
 
 # The identification rate of a log logged faster (default ``rate_hz``): the rate loop's informative band ends near
 # 15-30 Hz, so 250 Hz keeps 8x margin; a 1 kHz log identified at 1 kHz costs 4x the samples and far more in the
@@ -245,7 +245,7 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
             # the angle mode's input is the attitude set-point: the closed loop from it and the plant through the
             # angle and rate controllers, the pair the indirect route compares when the rate set-point is fed back
             try:
-                rec_a = _angle_record(log, axis, rec.dt)
+                rec_a = angle_record(log, axis, rec.dt)
                 split_a = select_windows(log, rec_a, "att_sp", "rate", holdout=holdout, override=windows, min_rms={})
                 models["closed-loop-angle"] = identify_direct(rec_a, split_a, "closed-loop-angle")
                 models["plant-indirect-angle"] = identify_plant_through_angle_loop(rec_a, split_a, C, share["P_log"],
@@ -338,9 +338,17 @@ def _angle_law_inverted_vaf(windows, P: float, F: float, dt: float) -> float:
     return float(vaf(np.concatenate(ys), np.concatenate(yh))[0])
 
 
-def _angle_record(log: FlightLog, axis: str, dt: float):
-    """The attitude set-point, rate and attitude of ``axis`` at ``dt``, the angles continuous: the set-point
-    unwrapped, the attitude that set-point less the wrapped angle error (a yaw crossing +-pi stays one branch)."""
+def angle_record(log: FlightLog, axis: str, dt: float):
+    """The attitude set-point, rate and attitude of ``axis`` at ``dt`` (a ``Record``), the angles continuous: the
+    set-point unwrapped, the attitude that set-point less the wrapped angle error (a yaw crossing +-pi stays one
+    branch).
+
+    Examples
+    --------
+    >>> rec = angle_record(read_flight_log("flight.bin"), "roll", 1 / 25)  # doctest: +SKIP
+    >>> sorted(rec.data)  # doctest: +SKIP
+    ['att', 'att_sp', 'rate']
+    """
     r = log.record(axis, ("att_sp", "rate", "att"), rate_hz=1.0 / dt)
     sp = np.unwrap(r.data["att_sp"])
     err = np.angle(np.exp(1j * (r.data["att_sp"] - r.data["att"])))
@@ -364,6 +372,8 @@ def _save(save_model, path, m: AxisModel, log: FlightLog, rec):
                                             (None if np.isnan(v) else v for v in holdout_excitation(m.split)))),
              "vaf_holdout": m.vaf_holdout, "tried": [[t, None if np.isnan(v) else v] for t, v in m.tried],
              **({"params": {k: float(v) for k, v in m.extra["params"].items()}} if "params" in m.extra else {}),
+             **({"ci95": {k: [float(a), float(b)] for k, (a, b) in m.extra["ci95"].items()}}
+                if "ci95" in m.extra else {}),
              **({"angle_loop": m.extra["angle_loop"]} if "angle_loop" in m.extra else {}),
              **({"controller_params_mapped": m.extra["controller_params_mapped"]}
                 if "controller_params_mapped" in m.extra else {})}

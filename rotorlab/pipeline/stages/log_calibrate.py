@@ -27,8 +27,8 @@ import numpy as np
 
 from rotorlab import lti
 from rotorlab.ident.flightlogs import read_flight_log
-from rotorlab.ident.flightlogs.identify import controller_at, holdout_prediction, loop_substeps
-from rotorlab.ident.flightlogs.run import autopilot_controller, autopilot_gyro_filter
+from rotorlab.ident.flightlogs.identify import angle_cascade, controller_at, holdout_prediction, loop_substeps
+from rotorlab.ident.flightlogs.run import angle_record, autopilot_controller, autopilot_gyro_filter
 from rotorlab.ident.flightlogs.windows import Window
 from rotorlab.ident.greybox import _closed_loop, lift_interpolated
 from rotorlab.ident.model import IdentifiedModel
@@ -85,20 +85,35 @@ def twin_plant(v, axis: str, dt_s: float) -> ct.StateSpace:
     return lti.c2d_zoh_delay(Gc, dt_s, delay_s)
 
 
-def twin_holdout_vaf(log, v, axis: str, dt_s: float, holdout) -> float:
-    """Free-run VAF (%) of the twin closed with the log's rate controller on the held-out windows."""
-    rec = log.record(axis, ("rate_sp", "rate"), rate_hz=1.0 / dt_s)
+def twin_holdout_vaf(log, v, axis: str, dt_s: float, holdout, angle: tuple | None = None) -> float:
+    """Free-run VAF (%) of the twin closed with the log's rate controller on the held-out windows, driven by the
+    logged rate set-point; with ``angle = (angle_p, ff)`` closed with the angle and rate controllers
+    (:func:`rotorlab.ident.flightlogs.identify.angle_cascade`) and driven by the attitude set-point, as the plant
+    through the angle loop was fitted and scored."""
     C = autopilot_controller(log, axis)
-    sub = loop_substeps(C, rec.dt)
-    K = controller_at(C, rec.dt / sub)
-    plant = twin_plant(v, axis, rec.dt / sub)
+    sub = loop_substeps(C, dt_s)
+    Gc, delay_s = twin_plant_continuous(v, axis)
+    if angle is None:
+        rec = log.record(axis, ("rate_sp", "rate"), rate_hz=1.0 / dt_s)
+        K, feedback, u_name = controller_at(C, rec.dt / sub), 0, "rate_sp"
+    else:
+        rec = angle_record(log, axis, dt_s)
+        K, feedback, u_name = angle_cascade(C, *angle, rec.dt / sub), (0, 1), "att_sp"
+        # the attitude is the rate integrated: a second output for the angle loop
+        A, B, Cm, D = (np.asarray(M, float) for M in (Gc.A, Gc.B, Gc.C, Gc.D))
+        n = A.shape[0]
+        Gc = ct.ss(np.block([[A, np.zeros((n, 1))], [Cm, np.zeros((1, 1))]]), np.vstack([B, D]),
+                   np.block([[Cm, np.zeros((1, 1))], [np.zeros((1, n)), np.ones((1, 1))]]), np.vstack([D, [[0.0]]]))
+    plant = lti.c2d_zoh_delay(Gc, rec.dt / sub, delay_s)
     gyro_filter = autopilot_gyro_filter(log)
     if gyro_filter is not None:  # the controller and the log both see the rate through the autopilot's gyro filter
-        plant = ct.series(plant, gyro_filter(rec.dt / sub))
-    cl = IdentifiedModel(sys=lift_interpolated(_closed_loop(plant, K, 0), sub), method="twin-closed-loop",
+        F = gyro_filter(rec.dt / sub)
+        plant = ct.series(plant, F if angle is None else ct.append(F, ct.ss([], [], [], [[1.0]], rec.dt / sub)))
+    cl_fast = _closed_loop(plant, K, feedback)
+    cl = IdentifiedModel(sys=lift_interpolated(cl_fast, sub)[0, :], method="twin-closed-loop",
                          settings={"substeps": sub})
     windows = [Window(float(a), float(b), "held out") for a, b in holdout]
-    return holdout_prediction(cl, rec, "rate_sp", "rate", windows)[0]
+    return holdout_prediction(cl, rec, u_name, "rate", windows)[0]
 
 
 def _start_vehicle(opts):
@@ -123,8 +138,8 @@ def run(ctx: StageContext) -> dict:
         return {"skipped": "no axis has a plant model to calibrate to", "notes": notes, "start_vehicle": str(source)}
     # the motor pole and delay start where the plants through the controller put them (the fit walks along the
     # lag-delay valley from a far start and can end at a bound: the S250 log went to 2 ms and 73 ms from x500's)
-    grey = [ident["axes"][a]["plant-indirect"]["params"] for a in targets
-            if "params" in (ident["axes"][a].get("plant-indirect") or {})]
+    grey = [ident["axes"][a][ident["axes"][a]["use"]]["params"] for a in targets
+            if "params" in ident["axes"][a][ident["axes"][a]["use"]]]
     if grey:
         lag = float(np.clip(np.mean([g["tau_s"] for g in grey]), *LAG_RANGE_S))
         # in whole physics steps: MuJoCo realises the delay with its actuator history
@@ -156,11 +171,15 @@ def run(ctx: StageContext) -> dict:
     prediction = {}
     for axis in targets:
         a = ident["axes"][axis]
-        cl = a["closed-loop"]
-        twin_vaf = twin_holdout_vaf(log, v, axis, cl["dt_s"], cl["holdout"])
+        # the pair that shares the input of the plant used: the rate set-point, or in an angle mode the attitude's
+        through_angle = a["use"] == "plant-indirect-angle"
+        cl, ind = (a["closed-loop-angle"], a["plant-indirect-angle"]) if through_angle else \
+            (a["closed-loop"], a.get("plant-indirect") or {})
+        angle = (ind["angle_p"], ind["ff"]) if through_angle else None
+        twin_vaf = twin_holdout_vaf(log, v, axis, cl["dt_s"], cl["holdout"], angle)
         prediction[axis] = {"twin_vaf_pct": twin_vaf, "closed_loop_vaf_pct": cl["vaf_holdout_pct"],
-                            "closed_loop_method": cl["method"],
-                            "plant_indirect_vaf_pct": (a.get("plant-indirect") or {}).get("vaf_holdout_pct")}
+                            "closed_loop_method": cl["method"], "input": "att_sp" if through_angle else "rate_sp",
+                            "plant_indirect_vaf_pct": ind.get("vaf_holdout_pct")}
     return jsonable({
         "vehicle": out.name, "start_vehicle": str(source), "axes": list(targets),
         "inertia_kgm2": cal.inertia_kgm2, "lag_s": cal.lag_s, "delay_s": cal.delay_s,

@@ -12,23 +12,39 @@ from rotorlab.ident.flightlogs.run import controller_params, identify_flight_log
 from rotorlab.ident.modelio import load_model
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
 
-__all__ = ["STAGE", "plant_of", "usable_plant", "MIN_PLANT_VAF_PCT"]
+__all__ = ["STAGE", "plant_of", "usable_plant", "MIN_PLANT_VAF_PCT", "ANGLE_CONSISTENCY_POINTS", "MAX_GAIN_SPREAD",
+           "ANGLE_ROUTE_AXES"]
 
 #: a plant model is calibrated to and tuned on only where it predicts the held-out flight: at least this VAF (%)
 #: and at least half the closed-loop model's (what the set-point -> rate data allows at all). The plant through
 #: the controller is scored closed again with it (set-point -> rate, comparable with the closed-loop model), the
 #: direct plant open loop. An axis without one keeps its inertia in the twin and the log's gains.
 MIN_PLANT_VAF_PCT = 30.0
+#: In an angle mode (the logged rate set-point is the angle loop's output) the attitude set-point is the input, and
+#: the direct model from it (closed-loop-angle) is the most any model predicts from it (pilot-flown in wind: about
+#: 30 % on the ArduCopter development log). The plant through the angle and rate controllers is then used where it
+#: predicts within this many VAF points of that model (it explains what the input explains: issue 27's bar) ...
+ANGLE_CONSISTENCY_POINTS = 5.0
+#: ... and its gain, which sets the loop gain a tuning works with, is determined: the 95 % interval's half-width at
+#: most this fraction of the estimate (a log of the rate loop at 24 Hz does not split the motor lag from the delay,
+#: their sum it does)
+MAX_GAIN_SPREAD = 0.25
+#: the axes whose plant through the angle loop has the right structure (the rigid body's rate and its integral)
+ANGLE_ROUTE_AXES = ("roll", "pitch")
 
 
-def usable_plant(axis_models: dict) -> tuple[str | None, str]:
-    """The plant model of an axis to calibrate to and tune on (``"plant-indirect"``, ``"plant"`` or None) and,
-    when none, why (:data:`MIN_PLANT_VAF_PCT`).
+def usable_plant(axis_models: dict, axis: str | None = None) -> tuple[str | None, str]:
+    """The plant model of an axis to calibrate to and tune on (``"plant-indirect"``, ``"plant"``,
+    ``"plant-indirect-angle"`` or None) and, when none, why (:data:`MIN_PLANT_VAF_PCT`; for the plant through the
+    angle loop :data:`ANGLE_CONSISTENCY_POINTS` and :data:`MAX_GAIN_SPREAD`).
 
     Parameters
     ----------
     axis_models : dict
-        Kind -> ``{"vaf_holdout_pct": ...}`` of one axis, with ``"closed-loop"``.
+        Kind -> ``{"vaf_holdout_pct": ...}`` of one axis, with ``"closed-loop"``; a plant through the angle loop
+        with ``"params"`` and ``"ci95"`` (its gain ``K``).
+    axis : str, optional
+        The plant through the angle loop is considered on :data:`ANGLE_ROUTE_AXES` only.
 
     Returns
     -------
@@ -42,6 +58,11 @@ def usable_plant(axis_models: dict) -> tuple[str | None, str]:
     ('plant-indirect', '')
     >>> usable_plant({"closed-loop": {"vaf_holdout_pct": 59.3}, "plant-indirect": {"vaf_holdout_pct": 12.4}})[0] is None
     True
+    >>> angle = {"closed-loop-angle": {"vaf_holdout_pct": 28.7}, "plant-indirect-angle": {"vaf_holdout_pct": 28.1,
+    ...          "params": {"K": 205.0}, "ci95": {"K": [168.9, 241.1]}}}
+    >>> usable_plant({"closed-loop": {"vaf_holdout_pct": 59.3}, "plant-indirect": {"vaf_holdout_pct": 12.4}, **angle},
+    ...              "roll")
+    ('plant-indirect-angle', '')
     """
     cl = axis_models["closed-loop"]["vaf_holdout_pct"]
     floor = max(MIN_PLANT_VAF_PCT, 0.5 * cl)
@@ -53,9 +74,19 @@ def usable_plant(axis_models: dict) -> tuple[str | None, str]:
         if m["vaf_holdout_pct"] >= floor:
             return kind, ""
         tried.append(f"{kind} {m['vaf_holdout_pct']:.1f} %")
-    return None, (f"no plant model predicts the held-out flight well enough to tune on ({', '.join(tried) or 'none'}"
-                  f"; needed {floor:.1f} %: at least {MIN_PLANT_VAF_PCT:g} % and half the closed loop's "
-                  f"{cl:.1f} %): the twin keeps its inertia and the axis its log gains")
+    why = (f"no plant model predicts the held-out flight well enough to tune on ({', '.join(tried) or 'none'}"
+           f"; needed {floor:.1f} %: at least {MIN_PLANT_VAF_PCT:g} % and half the closed loop's {cl:.1f} %)")
+    m, direct = axis_models.get("plant-indirect-angle"), axis_models.get("closed-loop-angle")
+    if m is not None and direct is not None and axis in ANGLE_ROUTE_AXES:
+        need = direct["vaf_holdout_pct"] - ANGLE_CONSISTENCY_POINTS
+        k, (lo, hi) = m["params"]["K"], m["ci95"]["K"]
+        spread = 0.5 * (hi - lo) / abs(k)
+        if m["vaf_holdout_pct"] >= need and spread <= MAX_GAIN_SPREAD:
+            return "plant-indirect-angle", ""
+        why += (f"; through the angle loop {m['vaf_holdout_pct']:.1f} % against the direct model's "
+                f"{direct['vaf_holdout_pct']:.1f} % (needed {need:.1f} %), its gain +-{100 * spread:.0f} % "
+                f"(needed at most {100 * MAX_GAIN_SPREAD:.0f} %)")
+    return None, why + ": the twin keeps its inertia and the axis its log gains"
 
 
 def plant_of(path) -> tuple | None:
@@ -91,9 +122,9 @@ def run(ctx: StageContext) -> dict:
                              "input": m.input, "output": m.output,
                              "holdout": [[w.start_s, w.stop_s] for w in m.split.holdout],
                              "ident": [[w.start_s, w.stop_s] for w in m.split.ident],
-                             **({"params": m.extra["params"]} if "params" in m.extra else {})}
+                             **{k: m.extra[k] for k in ("params", "ci95", "angle_p", "ff") if k in m.extra}}
                       for kind, m in models.items()}
-        axes[axis]["use"], why = usable_plant(axes[axis])
+        axes[axis]["use"], why = usable_plant(axes[axis], axis)
         if why:
             notes.append(f"{axis}: {why}")
     return jsonable({"log": str(log.path), "format": log.format, "log_autopilot": log.autopilot,

@@ -247,11 +247,16 @@ def _evidence(ident, cal, tune, val) -> list:
         out += [f"Not calibrated: {cal['skipped']}.", ""]
     else:
         out += ["The calibrated twin (linearised, gimbal scene) closed with the log's own rate controller, driven by the "
-                "logged rate set-point, against the closed-loop model fitted to the same data (rate set-point -> rate):",
-                "", "| axis | twin VAF | closed-loop fit VAF | plant through the controller VAF |", "|---|---|---|---|"]
+                "logged rate set-point, against the closed-loop model fitted to the same data (rate set-point -> rate); "
+                "where the rate set-point is the angle loop's output (an angle mode, input `att_sp`), closed with the "
+                "log's angle and rate controllers and driven by the attitude set-point, against the closed-loop model "
+                "from it (attitude set-point -> rate):",
+                "", "| axis | input | twin VAF | closed-loop fit VAF | plant through the controller VAF |",
+                "|---|---|---|---|---|"]
         for axis, p in cal["prediction"].items():
-            out.append(f"| {axis} | {_f(p['twin_vaf_pct'], '.1f', ' %')} | {_f(p['closed_loop_vaf_pct'], '.1f', ' %')} "
-                       f"({p['closed_loop_method']}) | {_f(p['plant_indirect_vaf_pct'], '.1f', ' %')} |")
+            out.append(f"| {axis} | {p.get('input', 'rate_sp')} | {_f(p['twin_vaf_pct'], '.1f', ' %')} | "
+                       f"{_f(p['closed_loop_vaf_pct'], '.1f', ' %')} ({p['closed_loop_method']}) | "
+                       f"{_f(p['plant_indirect_vaf_pct'], '.1f', ' %')} |")
         out += ["", "### Calibration", "",
                 f"Started from `{cal['start_vehicle']}`; inertia {', '.join(f'{x:.4g}' for x in cal['inertia_kgm2'])} "
                 f"kg m^2, motor lag {', '.join(sorted({f'{x * 1e3:.1f}' for x in cal['lag_s']}))} ms, delay "
