@@ -2,7 +2,8 @@
 identify_flight_log`): per axis the closed loop (rate set-point -> rate), the plant (rate-loop output -> rate) where
 the log has it, and the plant through the autopilot's known rate controller (the log's parameters). Writes
 ``models/<axis>[-<kind>].json`` and the identification report (``models/report.html``) and keeps the log's
-parameters (``log.params``, the names of older firmware mapped onto the current laws')."""
+parameters (``log.params``, the names of older firmware mapped onto the current laws'). With ``--vehicle`` the
+plant structures carry that vehicle's IMU mount (``[imu] mount_frequency_hz``, ``mount_damping_ratio``)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from rotorlab.ident.flightlogs.plant_structures import fitted_plant
 from rotorlab.ident.flightlogs.run import controller_params, identify_flight_log
 from rotorlab.ident.modelio import load_model
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
+from rotorlab.vehicles import load_vehicle
 
 __all__ = ["STAGE", "plant_of", "usable_plant", "MIN_PLANT_VAF_PCT", "ANGLE_CONSISTENCY_POINTS", "MAX_GAIN_SPREAD",
            "ANGLE_ROUTE_AXES"]
@@ -108,7 +110,11 @@ def plant_of(path) -> tuple | None:
 
 def run(ctx: StageContext) -> dict:
     opts = ctx.opts
-    res = identify_flight_log(opts.log, ctx.work / "models", holdout=ctx.settings["holdout"])
+    # the IMU's mount is the user's vehicle's (--vehicle), not the generic start's: a flight log does not determine
+    # it, and where the gyro filter passes it the plant models miss it without (identify_flight_log)
+    imu = load_vehicle(opts.vehicle_file).imu if opts.vehicle_file else None
+    res = identify_flight_log(opts.log, ctx.work / "models", holdout=ctx.settings["holdout"],
+                              imu_mount=(imu.mount_frequency_hz, imu.mount_damping_ratio) if imu else None)
     log = res.log
     params, mapped = controller_params(log)
     autopilot = opts.autopilot or log.autopilot
