@@ -24,16 +24,17 @@ def as_columns(x, name: str) -> np.ndarray:
     return a
 
 
-def check_io(u, y, *, min_samples: int, what: str) -> tuple[np.ndarray, np.ndarray]:
-    """Validate an input/output record and return both as (N, m) / (N, p) arrays."""
+def check_io(u, y, *, min_samples: int, what: str, sized_by: str = "order/horizon") -> tuple[np.ndarray, np.ndarray]:
+    """Validate an input/output record and return both as (N, m) / (N, p) arrays; ``sized_by`` names the setting
+    that sets ``min_samples`` in the message of a record too short."""
     u2 = as_columns(u, "u")
     y2 = as_columns(y, "y")
     if len(u2) != len(y2):
         raise DataError(f"u has {len(u2)} samples but y has {len(y2)}; pass records of the same length")
     if len(u2) < min_samples:
         raise DataError(
-            f"{what} needs at least {min_samples} samples for the requested order/horizon; got {len(u2)} "
-            "(use a longer record or a smaller order/horizon)"
+            f"{what} needs at least {min_samples} samples for the requested {sized_by}; got {len(u2)} "
+            f"(use a longer record or lower the {sized_by})"
         )
     const = np.ptp(u2, axis=0) == 0
     if const.any():

@@ -116,7 +116,7 @@ def lms_batch(u, y, taps: int, mu: float = 0.5, normalized: bool = True, leakage
     >>> bool(np.max(np.abs(h - h_true)) < 0.01 * np.max(np.abs(h_true)))  # the taps converge to the impulse response
     True
     """
-    u2, y2 = check_io(u, y, min_samples=taps + 1 + delay, what="lms_batch")
+    u2, y2 = check_io(u, y, min_samples=taps + 1 + delay, what=f"LMS with {taps} taps", sized_by="number of taps")
     if u2.shape[1] != 1 or y2.shape[1] != 1:
         raise DataError(f"lms_batch is SISO; got {u2.shape[1]} input(s) and {y2.shape[1]} output(s)")
     d = check_int(delay, "delay", 0)

@@ -81,3 +81,9 @@ def test_kung_and_lms_bad_input():
         kung(markov(G, 11), order=8)
     with pytest.raises(DataError, match="mu"):
         LMS(10, mu=0.0)
+
+
+def test_too_many_taps_for_the_record_names_the_taps():
+    u = np.random.default_rng(0).standard_normal(200)
+    with pytest.raises(DataError, match=r"LMS with 500 taps needs at least 501 samples .* number of taps; got 200"):
+        lms_batch(u, u, taps=500)
