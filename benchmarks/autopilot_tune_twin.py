@@ -3,7 +3,8 @@
 1. Plants: the twin's true linearisation per axis (sim/linearize.py, delay removed, minimal, back to continuous
    time), in the autopilots' units, with the rotors' delays (roll 0.024 s, pitch 0.028 s; yaw, driven by both
    pairs, 0.026 s, 6.5 loop periods), written as model JSON.
-2. ``rotorlab tune --autopilot px4`` (generic spec; and ``--match px4-autotune``) and ``--autopilot ardupilot``
+2. ``rotorlab tune --autopilot px4`` (generic spec; ``--match px4-autotune``; ``--match all --filters search``)
+   and ``--autopilot ardupilot``
    at 250 Hz: the linear analysis of the tuned set and of every baseline is printed by the command.
 3. The PX4 autotune module's set (its identification run on the same loops flying the defaults, then its rule:
    what PX4 would save, written without the range check as PX4 writes it: its MC_YAW_P exceeds the documented 5)
@@ -83,13 +84,16 @@ def main():
     model_args = [f"--model={a}={out / (a + '.json')}" for a in DELAY_S]
     runs = {"px4-tuned": ["--autopilot", "px4", "--out", str(out / "px4-tuned.params")],
             "px4-match": ["--autopilot", "px4", "--match", "px4-autotune", "--out", str(out / "px4-match.params")],
+            "px4-all": ["--autopilot", "px4", "--match", "all", "--filters", "search",
+                        "--out", str(out / "px4-all.params")],
             "ardupilot-tuned": ["--autopilot", "ardupilot", "--out", str(out / "ardupilot-tuned.parm")]}
     for name, args in runs.items():
         print(f"==== rotorlab tune {name}")
         r = subprocess.run(ROTORLAB + ["tune", *model_args, "--loop-hz", "250", *args], capture_output=True,
                            text=True)
         print("\n".join(ln for ln in r.stdout.splitlines() if ln.startswith(("  ", "roll", "pitch", "yaw", "wrote"))))
-    sets = [f"px4:{out / 'px4-tuned.params'}", f"px4:{out / 'px4-match.params'}", "px4:defaults",
+    sets = [f"px4:{out / 'px4-tuned.params'}", f"px4:{out / 'px4-match.params'}", f"px4:{out / 'px4-all.params'}",
+            "px4:defaults",
             f"px4:{out / 'px4-autotune.params'}", f"ardupilot:{out / 'ardupilot-tuned.parm'}", "ardupilot:defaults"]
     print("==== twin: input-disturbance (10 %), rigs; angle peak deg, IAE deg s, command power above 5 Hz")
     for c in sets:

@@ -271,6 +271,8 @@ def tuhh(tmp_path_factory):
     runs = {"px4": ["--autopilot", "px4", "--out", str(d / "px4.params"), "--spec-out", str(d / "px4.toml")],
             "px4-match": ["--autopilot", "px4", "--match", "px4-autotune", "--out", str(d / "px4-match.params"),
                           "--spec-out", str(d / "px4-match.toml")],
+            "px4-all": ["--autopilot", "px4", "--match", "all", "--filters", "search", "--out", str(d / "px4-all.params"),
+                        "--spec-out", str(d / "px4-all.toml")],
             "ardupilot": ["--autopilot", "ardupilot", "--out", str(d / "ardupilot.parm")]}
     for args in runs.values():
         assert main(["tune", *models, "--loop-hz", "250", *args]) == 0
@@ -279,6 +281,7 @@ def tuhh(tmp_path_factory):
     assert not rejected
     sets = {"px4": {**px4d, **autopilots.read_params(d / "px4.params")},
             "px4-match": {**px4d, **autopilots.read_params(d / "px4-match.params")},
+            "px4-all": {**px4d, **autopilots.read_params(d / "px4-all.params")},
             "px4-defaults": px4d, "px4-autotune": {**px4d, **rule},
             "ardupilot": {**apd, **autopilots.read_params(d / "ardupilot.parm")}, "ardupilot-defaults": apd}
     return d, plants, sets
@@ -351,6 +354,26 @@ def test_tuhh_px4_set_at_the_autotune_rules_margin_beats_the_rule_on_every_axis(
         assert goals["Effort"].max_gain == pytest.approx(max(an["px4-autotune"].noise_gain, 2 * max(robust)),
                                                          rel=1e-3)
     _beats(tuhh, "px4", "px4-match", "px4-autotune")
+
+
+def test_tuhh_one_px4_set_with_its_filters_beats_both_baselines_at_their_margins(tuhh):
+    """``--match all --filters search``: one set, its gyro and D-term low-pass cutoffs searched with the gains,
+    beats PX4's defaults and the PX4-autotune rule (both flying the default filters) on every axis at a disk margin
+    no smaller than either's (the spec's floor is the most robust baseline's, its noise bound the noisiest one's
+    gain: hand-checked from the spec's own numbers), in the analysis and flown in the twin; the file parses back
+    inside the documented ranges with the filters it chose."""
+    d, plants, sets = tuhh
+    spec = parse_spec(tomllib.loads((d / "px4-all.toml").read_text()))
+    for axis, Gp in plants.items():
+        an = [T.analyse_axis("px4", sets[s], axis, Gp) for s in ("px4-defaults", "px4-autotune")]
+        goals = {type(g).__name__: g for g in spec.goals[axis]}
+        assert goals["Margins"].alpha_req() == pytest.approx(max(0.4, *(a.disk_alpha for a in an)), rel=1e-5)
+        assert goals["Effort"].max_gain >= max(a.noise_gain for a in an)
+    params = autopilots.read_params(d / "px4-all.params")
+    autopilots.px4.TABLE.check(params)
+    assert {"IMU_GYRO_CUTOFF", "IMU_DGYRO_CUTOFF"} <= set(params)
+    _beats(tuhh, "px4", "px4-all", "px4-defaults")
+    _beats(tuhh, "px4", "px4-all", "px4-autotune")
 
 
 def test_tuhh_ardupilot_tuned_set_beats_ardupilots_defaults_on_every_axis(tuhh):

@@ -43,7 +43,8 @@ from rotorlab.tune.margins import crossover_frequencies, margins
 
 __all__ = ["AXES", "tuned_names", "axis_plant", "AutopilotAxisBlock", "margins_goal", "analyse_axis",
            "AxisAnalysis", "tune_axis", "tune_autopilot", "AxisTuneResult", "evaluate_axis", "parallel_gains",
-           "apply_gains", "px4_autotune_params", "disturbance_response"]
+           "apply_gains", "px4_autotune_params", "disturbance_response", "FILTER_FACTORS", "filter_candidates",
+           "tune_filters", "FilterSearch"]
 
 AXES = ("roll", "pitch", "yaw")
 
@@ -381,6 +382,82 @@ def tune_autopilot(spec, plants: Mapping[str, ct.StateSpace], params: Mapping[st
         out[axis] = tune_axis(spec.autopilot, params, axis, Gp, spec.goals[axis], starts=starts, seed=seed,
                               max_iter=max_iter, n_jobs=n_jobs, executor=executor)
     return out
+
+
+#: the factors on each filter group's cutoffs a search tries (:func:`filter_candidates`): the flown setting and
+#: up to 2.5 times it, where the gyro noise a faster filter passes is bounded by the spec's effort goal
+FILTER_FACTORS = (1.0, 1.5, 2.0, 2.5)
+#: a cutoff is kept at most this fraction of the Nyquist frequency: at it the discrete Butterworth's response is
+#: no longer the analogue filter's, and PX4 switches a filter at or above Nyquist off (filters.butter2_on)
+MAX_NYQUIST_FRACTION = 0.8
+
+
+def filter_candidates(autopilot, params: Mapping[str, float], dt_s: float,
+                      factors=FILTER_FACTORS) -> list[dict[str, float]]:
+    """The filter settings a search tries: every combination over the autopilot's ``FILTER_GROUPS`` of each
+    group's cutoffs in ``params`` times a factor of ``factors``, capped at :data:`MAX_NYQUIST_FRACTION` of the
+    loop's Nyquist frequency and at the parameter's documented maximum; a filter that is off (0 Hz) stays off.
+    The first candidate is ``params``' own setting; duplicates (after capping) are dropped.
+
+    Examples
+    --------
+    >>> from rotorlab.autopilots import px4
+    >>> c = filter_candidates("px4", px4.TABLE.defaults(), 1 / 250)
+    >>> len(c), c[0], c[-1]
+    (16, {'IMU_GYRO_CUTOFF': 40.0, 'IMU_DGYRO_CUTOFF': 20.0}, {'IMU_GYRO_CUTOFF': 100.0, 'IMU_DGYRO_CUTOFF': 50.0})
+    """
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    cap = MAX_NYQUIST_FRACTION * 0.5 / dt_s
+    per_group = []
+    for group in ap.FILTER_GROUPS:
+        options = []
+        for f in factors:
+            setting = {n: min(float(params[n]) * f, cap, math.inf if ap.TABLE[n].max is None else ap.TABLE[n].max)
+                       if float(params[n]) > 0 else 0.0 for n in group}
+            if setting not in options:
+                options.append(setting)
+        per_group.append(options)
+    out = [{}]
+    for options in per_group:
+        out = [{**a, **b} for a in out for b in options]
+    return out
+
+
+@dataclasses.dataclass
+class FilterSearch:
+    """:func:`tune_filters`' result: the chosen filter setting, its per-axis :class:`AxisTuneResult`, and per
+    candidate ``(setting, worst axis objective, all hard goals met)``."""
+
+    filters: dict
+    results: dict
+    table: list
+
+
+def tune_filters(make_spec, plants: Mapping[str, ct.StateSpace], params: Mapping[str, float], candidates,
+                 **tune_kw) -> FilterSearch:
+    """Tune the gains at each filter setting of ``candidates`` (:func:`filter_candidates`) and keep the setting
+    whose tuned set meets every hard goal on every axis with the smallest worst-axis objective (the largest soft
+    goal of the worst axis); with none feasible, the smallest number of failed hard goals, then the objective.
+
+    ``make_spec(params) -> AutopilotSpec`` gives the spec for a parameter set (the generic spec's band and the
+    D path's lag depend on the filters); ``tune_kw`` go to :func:`tune_autopilot`.
+
+    Examples
+    --------
+    >>> found = tune_filters(lambda p: spec, plants, params, filter_candidates("px4", params, 1 / 250))  # doctest: +SKIP
+    >>> found.filters  # doctest: +SKIP
+    """
+    best, best_key, table = None, None, []
+    for setting in candidates:
+        p = {**params, **setting}
+        res = tune_autopilot(make_spec(p), plants, p, **tune_kw)
+        failed = sum(1 for r in res.values() for x in r.report if x.hard and not x.passed)
+        worst = max(r.objective for r in res.values())
+        table.append((setting, worst, failed == 0))
+        key = (failed, worst)
+        if best_key is None or key < best_key:
+            best, best_key = (setting, res), key
+    return FilterSearch(best[0], best[1], table)
 
 
 def px4_autotune_params(plants: Mapping[str, ct.StateSpace], params: Mapping[str, float], *,

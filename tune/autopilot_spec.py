@@ -34,7 +34,9 @@ With ``match`` (``rotorlab tune --match``) one baseline's robustness replaces th
 floor is that baseline's margin (no 0.4 minimum), the noise bound the larger of its gain and the rule above, the
 band reaches ``MATCH_BAND`` times its crossover. A baseline that buys its rejection with a small margin (PX4's
 autotune module on the tuhh-quad: 0.21-0.24 on roll and pitch) cannot be beaten at the defaults' margin by this
-structure; at its own margin it can (docs/autopilot-tuning.md has the numbers and the sweep).
+structure's gains with the default filters; at its own margin it can, and with the gyro and D-term low-pass cutoffs
+searched too, one set at the defaults' margin beats both (``match="all"`` and
+:func:`rotorlab.tune.autopilot.tune_filters`; docs/autopilot-tuning.md has the numbers and the sweep).
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ from rotorlab.tune import goals as G
 from rotorlab.tune.autopilot import AXES, analyse_axis, evaluate_axis
 
 __all__ = ["PHASE_LIMIT_DEG", "CANCELLED_PHASE_LIMIT_DEG", "DISK_FLOOR", "BAND_RATIO", "NOISE_FACTOR", "NOISE_DEFAULT",
-           "MATCH_BAND", "crossover_band", "dterm_lag", "generic_spec"]
+           "MATCH_BAND", "ALL_BASELINES", "crossover_band", "dterm_lag", "generic_spec"]
 
 PHASE_LIMIT_DEG = -165.0
 # the loop's phase at wc_max with the D term's zero on the slowest actuator pole (its lead spent there)
@@ -64,6 +66,8 @@ NOISE_FACTOR = 2.0
 # with no stable baseline: 1 normalised torque per rad/s (0.3 deg/s of gyro noise moves the command 0.5 %)
 NOISE_DEFAULT = 1.0
 MATCH_BAND = 1.25
+#: ``match`` naming every baseline at once (``rotorlab tune --match all``)
+ALL_BASELINES = "all"
 
 
 def crossover_band(G, delay_s: float, dt_s: float, gyro_cutoff_hz: float, d_lag=None) -> tuple[float, float]:
@@ -170,7 +174,11 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
     ``params`` are the parameters the tuned set replaces (filters taken from them); ``baselines`` name the sets
     compared against (e.g. ``{"file": ..., "defaults": ..., "px4-autotune": ...}``), complete parameter dicts.
 
-    ``match`` names one baseline whose robustness the tuned set is held to instead of the most robust one's: its
+    ``match="all"`` (:data:`ALL_BASELINES`) asks for one set that beats every baseline at once: the disk floor
+    stays the most robust baseline's (and at least 0.4), the gyro-noise bound is at least the noisiest baseline's
+    gain, and the band reaches ``MATCH_BAND`` times the baselines' highest crossover.
+
+    ``match`` naming one baseline holds the tuned set to its robustness instead of the most robust one's: its
     disk margin is the floor (no 0.4 minimum), the gyro-noise bound is the larger of its own gain and the generic
     bound (a baseline that buys its rejection with command noise lends the tuned set the same allowance; one
     quieter than the generic bound does not tighten it), and the band's upper edge is at least ``MATCH_BAND``
@@ -207,7 +215,16 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
         noise = NOISE_FACTOR * max(robust) if robust else NOISE_DEFAULT
         noise_why = (f"{NOISE_FACTOR:g} x the largest of the baselines' that meet the disk floor {DISK_FLOOR:g}"
                      if robust else f"{NOISE_DEFAULT:g} (no stable baseline)")
-        if match is not None:
+        if match == ALL_BASELINES:
+            # every baseline beaten at once: the most robust one's margin, the noisiest one's command noise
+            disk = max([DISK_FLOOR] + [a.disk_alpha for a in ok.values()])
+            loudest = max(ok, key=lambda b: ok[b].noise_gain, default=None)
+            if loudest is not None and ok[loudest].noise_gain > noise:
+                noise, noise_why = ok[loudest].noise_gain, f"{loudest}'s gain, the noisiest baseline's (match all)"
+            hi = max(hi, MATCH_BAND * max((w for a in ok.values() for w in a.wc_rad_s), default=0.0))
+            disk_why = f"max({DISK_FLOOR}, baselines') (match all)"
+            band_why = f"; at least {MATCH_BAND:g} x the baselines' highest crossover (match all)"
+        elif match is not None:
             if match not in baselines:
                 raise ValueError(f"match: no baseline {match!r}; baselines are {sorted(baselines)}")
             if match not in ok:

@@ -42,7 +42,7 @@ import numpy as np
 from rotorlab.autopilots import filters
 from rotorlab.autopilots.params import ParamSpec, ParamTable
 
-__all__ = ["NAME", "FILE_FORMAT", "AXES", "LOOP_RATE_PARAM", "TABLE", "axis_names", "RateController",
+__all__ = ["NAME", "FILE_FORMAT", "AXES", "LOOP_RATE_PARAM", "FILTER_GROUPS", "TABLE", "axis_names", "RateController",
            "AttitudeController", "rate_controller_lti", "attitude_controller_lti", "loop_hz"]
 
 NAME = "ardupilot"
@@ -50,6 +50,9 @@ FILE_FORMAT = "parm"  # Mission Planner .parm
 AXES = ("roll", "pitch", "yaw")
 LOOP_RATE_PARAM = "SCHED_LOOP_RATE"  # the rate-loop rate, Hz
 GYRO_FILTER_PARAM = "INS_GYRO_FILTER"  # the gyro low-pass the rate loop flies on (and RATE logs), Hz
+#: the filter cutoffs a tuning may move (rotorlab tune --filters search), in groups moved together:
+#: the gyro low-pass, and the rate PIDs' derivative filters moved together
+FILTER_GROUPS = (("INS_GYRO_FILTER",), ("ATC_RAT_RLL_FLTD", "ATC_RAT_PIT_FLTD", "ATC_RAT_YAW_FLTD"))
 
 _MULTI = "ArduCopter 4.x AC_AttitudeControl_Multi.cpp/.h"
 _ATT = "ArduCopter 4.x AC_AttitudeControl.cpp/.h"

@@ -40,7 +40,7 @@ import control as ct
 from rotorlab.autopilots import filters
 from rotorlab.autopilots.params import ParamSpec, ParamTable
 
-__all__ = ["NAME", "FILE_FORMAT", "AXES", "LOOP_RATE_PARAM", "TABLE", "axis_names", "RateController",
+__all__ = ["NAME", "FILE_FORMAT", "AXES", "LOOP_RATE_PARAM", "FILTER_GROUPS", "TABLE", "axis_names", "RateController",
            "AttitudeController", "rate_controller_lti", "attitude_controller_lti", "loop_hz"]
 
 NAME = "px4"
@@ -48,6 +48,9 @@ FILE_FORMAT = "qgc"  # QGroundControl .params
 AXES = ("roll", "pitch", "yaw")
 LOOP_RATE_PARAM = "IMU_GYRO_RATEMAX"  # the rate-loop rate, Hz
 GYRO_FILTER_PARAM = "IMU_GYRO_CUTOFF"  # the gyro low-pass the rate loop flies on (and the log holds), Hz
+#: the filter cutoffs a tuning may move (rotorlab tune --filters search), in groups moved together:
+#: the gyro low-pass and the D-term low-pass (one each, all axes)
+FILTER_GROUPS = (("IMU_GYRO_CUTOFF",), ("IMU_DGYRO_CUTOFF",))
 
 _RC = "PX4 mc_rate_control_params.yaml @e87d6afa"
 _AC = "PX4 mc_att_control_params.yaml @e87d6afa"

@@ -63,11 +63,15 @@ def _autotune_settings(raw, path):
     return out
 
 
+def _filter_key(ap, params) -> tuple:
+    return tuple(float(params[n]) for group in ap.FILTER_GROUPS for n in group)
+
+
 def run_autopilot(args) -> int:
     from rotorlab import atomic, autopilots
     from rotorlab.autopilots import px4
     from rotorlab.tune import autopilot as T
-    from rotorlab.tune.autopilot_spec import generic_spec
+    from rotorlab.tune.autopilot_spec import ALL_BASELINES, generic_spec
     from rotorlab.tune.goals import format_report
     from rotorlab.tune.spec import AutopilotSpec, load_spec, parse_spec
 
@@ -101,8 +105,9 @@ def run_autopilot(args) -> int:
             # PX4 autotune identifies the loops flying today's gains; when it refuses, all of them stay
             gains, rejected = T.px4_autotune_params(plants, current, **_autotune_settings(raw, args.params))
             baselines["px4-autotune"] = {**current, **gains}
-        if args.match and args.match not in baselines:
-            raise ConfigError("no such baseline", field="--match", expected=" or ".join(baselines), got=args.match)
+        if args.match and args.match not in baselines and args.match != ALL_BASELINES:
+            raise ConfigError("no such baseline", field="--match", expected=" or ".join([*baselines, ALL_BASELINES]),
+                              got=args.match)
         if args.spec:
             spec = load_spec(args.spec)
             if not isinstance(spec, AutopilotSpec) or spec.autopilot != ap.NAME:
@@ -111,24 +116,38 @@ def run_autopilot(args) -> int:
             if abs(spec.dt - dt) > 1e-9:
                 raise ConfigError("the spec's loop period differs from the loop rate", file=args.spec,
                                   field="autopilot.dt", expected=dt, got=spec.dt)
-            spec_text = None
-        else:
-            model_names = ", ".join(sorted({m[2] for m in models.values()}))
-            spec_text = generic_spec(ap, {a: (plants[a], models[a][0], models[a][1]) for a in plants}, dt, current,
-                                     baselines, model=model_names, match=args.match)
-            import tomllib
+        model_names = ", ".join(sorted({m[2] for m in models.values()}))
+        spec_texts = {}
 
-            spec = parse_spec(tomllib.loads(spec_text), name="generic", src="<generated spec>")
-            if args.spec_out:
-                atomic.write_text(args.spec_out, spec_text)
-        spec.axes = [a for a in spec.axes if a in plants]
-        if not spec.axes:
-            raise ConfigError("no model for any axis the spec tunes", field="--model", expected=", ".join(AXES))
-        res = T.tune_autopilot(spec, plants, current, starts=args.starts or 1, seed=args.seed,
-                               max_iter=args.max_iter or 30, n_jobs=args.jobs)
+        def make_spec(p):
+            # the generated spec depends on the filters of p (the band counts their lag); a given spec does not
+            if args.spec:
+                out_spec = spec
+            else:
+                import tomllib
+
+                text = generic_spec(ap, {a: (plants[a], models[a][0], models[a][1]) for a in plants}, dt, p,
+                                    baselines, model=model_names, match=args.match)
+                spec_texts[_filter_key(ap, p)] = text
+                out_spec = parse_spec(tomllib.loads(text), name="generic", src="<generated spec>")
+            out_spec.axes = [a for a in out_spec.axes if a in plants]
+            if not out_spec.axes:
+                raise ConfigError("no model for any axis the spec tunes", field="--model", expected=", ".join(AXES))
+            return out_spec
+
+        tune_kw = dict(starts=args.starts or 1, seed=args.seed, max_iter=args.max_iter or 30, n_jobs=args.jobs)
+        filters = {}
+        if args.filters == "search":
+            found = T.tune_filters(make_spec, plants, current, T.filter_candidates(ap, current, dt), **tune_kw)
+            res, filters = found.results, found.filters
+        else:
+            res = T.tune_autopilot(make_spec(current), plants, current, **tune_kw)
+        spec_text = spec_texts.get(_filter_key(ap, {**current, **filters}))
+        if args.spec_out and spec_text is not None:
+            atomic.write_text(args.spec_out, spec_text)
     except (RotorlabError, ValueError) as exc:
         raise CLIError(str(exc)) from None
-    tuned = {}
+    tuned = dict(filters)
     for axis, r in res.items():
         tuned.update(r.gains)
         if ap.NAME == "px4":
@@ -137,7 +156,9 @@ def run_autopilot(args) -> int:
     lines = [f"rotorlab tune --autopilot {ap.NAME}: {', '.join(res)} at {loop_hz:g} Hz on "
              + ", ".join(f"{a}={models[a][2]} (delay {models[a][1]:.4g} s)" for a in res),
              f"spec: {'generic multirotor spec (rotorlab.tune.autopilot_spec)' if spec_text else args.spec}; "
-             f"baselines: {', '.join(baselines)}",
+             f"baselines: {', '.join(baselines)}"
+             + (f"; filters searched ({len(found.table)} settings), chosen: "
+                + ", ".join(f"{k}={v:g}" for k, v in filters.items()) if filters else ""),
              "goals per axis: crossover band, disk margin floor, gyro-noise bound (hard, <= 1 met); input-disturbance "
              "peak and low-frequency rejection (soft, minimised; 1 = the best baseline's)"]
     for a, r in res.items():

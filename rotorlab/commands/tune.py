@@ -44,7 +44,11 @@ def add_parser(sub):
     p.add_argument("--spec-out", help="with --autopilot: write the generated spec TOML here")
     p.add_argument("--match", help="with --autopilot: hold the tuned set to this baseline's robustness (file, "
                                    "defaults, px4-autotune): its disk margin and at least its gyro-noise allowance, not the most robust "
-                                   "baseline's (docs/autopilot-tuning.md)")
+                                   "baseline's; 'all': beat every baseline at once, at the most robust one's margin with "
+                                   "the noisiest one's gyro-noise allowance (docs/autopilot-tuning.md)")
+    p.add_argument("--filters", choices=("keep", "search"), default="keep",
+                   help="with --autopilot: keep the flown filter cutoffs (default) or search them with the gains "
+                        "(the gyro and D-term low-passes, up to 2.5x the flown cutoffs; 16 tunings)")
     p.add_argument("--start", default="standard",
                    help="start gains: a gains TOML file or a gain-set name of the spec's vehicle")
     p.add_argument("--out", required=True, help="gains TOML (parameter file with --autopilot) to write; when a hard "
