@@ -37,6 +37,7 @@ from rotorlab.pipeline.stages.log_identify import plant_of
 from rotorlab.scenes import PHYSICS_DT_S
 from rotorlab.sim.control.autopilot import TORQUE_TO_PCT
 from rotorlab.sim.linearize import linearize
+from rotorlab.tune.autopilot import axis_plant
 from rotorlab.vehicles import load_vehicle, vehicle_path
 from rotorlab.vehicles.fit_axes import (
     AXES,
@@ -96,15 +97,11 @@ def twin_holdout_vaf(log, v, axis: str, dt_s: float, holdout, angle: tuple | Non
     if angle is None:
         rec = log.record(axis, ("rate_sp", "rate"), rate_hz=1.0 / dt_s)
         K, feedback, u_name = controller_at(C, rec.dt / sub), 0, "rate_sp"
+        plant = lti.c2d_zoh_delay(Gc, rec.dt / sub, delay_s)
     else:
         rec = angle_record(log, axis, dt_s)
         K, feedback, u_name = angle_cascade(C, *angle, rec.dt / sub), (0, 1), "att_sp"
-        # the attitude is the rate integrated: a second output for the angle loop
-        A, B, Cm, D = (np.asarray(M, float) for M in (Gc.A, Gc.B, Gc.C, Gc.D))
-        n = A.shape[0]
-        Gc = ct.ss(np.block([[A, np.zeros((n, 1))], [Cm, np.zeros((1, 1))]]), np.vstack([B, D]),
-                   np.block([[Cm, np.zeros((1, 1))], [np.zeros((1, n)), np.ones((1, 1))]]), np.vstack([D, [[0.0]]]))
-    plant = lti.c2d_zoh_delay(Gc, rec.dt / sub, delay_s)
+        plant = axis_plant(Gc, delay_s, rec.dt / sub)  # [rate, angle]: the attitude the rate integrated
     gyro_filter = autopilot_gyro_filter(log)
     if gyro_filter is not None:  # the controller and the log both see the rate through the autopilot's gyro filter
         F = gyro_filter(rec.dt / sub)
