@@ -161,3 +161,21 @@ def test_the_log_pipeline_predicts_an_angle_mode_flight_as_the_identification_do
     summary.pop("plant", None)
     assert usable_plant(summary, "roll")[0] == "plant-indirect-angle"
     assert usable_plant(summary, "yaw")[0] is None
+
+
+def test_tune_takes_the_plant_ident_wrote_through_the_controller(flight, tmp_path):
+    """``rotorlab tune --autopilot px4 --model roll=roll-plant-indirect.json``: the file ``rotorlab ident`` writes
+    for the plant through the controller holds its fractional delay as a state at z = 0 (no continuous
+    equivalent); tune reads it as its structure's continuous plant with the delay, the one the log pipeline uses,
+    and tunes it (it refused the file with 'poles on the non-positive real axis')."""
+    from rotorlab.cli import main
+    from rotorlab.commands._tune_autopilot import _models
+    from rotorlab.ident.flightlogs.plant_structures import fitted_plant
+
+    res = identify_flight_log(_ulog(flight, tmp_path / "f.ulg"), tmp_path / "m", ["roll"], report=False)
+    path = tmp_path / "m" / "roll-plant-indirect.json"
+    G, delay_s, _ = _models(type("A", (), {"axes": "roll", "model": [f"roll={path}"]})())["roll"]
+    want, want_delay = fitted_plant("rate-plant", res.models["roll"]["plant-indirect"].extra["params"])
+    assert G.dt == 0 and delay_s == want_delay and np.allclose(np.asarray(G.A), np.asarray(want.A))
+    assert main(["tune", "--autopilot", "px4", "--model", f"roll={path}", "--axes", "roll", "--loop-hz", "250",
+                 "--out", str(tmp_path / "t.params")]) == 0

@@ -51,7 +51,7 @@ import numpy as np
 from ..greybox import GreyBoxModel, Param
 
 __all__ = ["STRUCTURES", "MOTOR_PARAMS", "SHARES_MOTORS", "plant_structure", "rate_plant_structure", "with_imu_mount",
-           "rate_angle_plant_structure", "fitted_plant", "yaw_rate_plant_structure"]
+           "rate_angle_plant_structure", "fitted_plant", "file_plant", "yaw_rate_plant_structure"]
 
 
 def rate_plant_structure(K: float = 100.0, tau_s: float = 0.03, delay_s: float = 0.005) -> GreyBoxModel:
@@ -270,3 +270,22 @@ def fitted_plant(name: str, params: dict) -> tuple | None:
         G = ct.series(ct.ss([], [], [], np.ones((G.ninputs, 1))), G)
     return G, float(np.mean([params[d] for d in delays]))
 
+
+
+def file_plant(G, delay_s: float, meta: dict) -> tuple:
+    """The plant a model file holds, as ``(G, delay_s)``: where the file records a structure of
+    :data:`STRUCTURES` and its fitted parameters (``settings.structure``, ``settings.extra.params``: what
+    ``rotorlab ident`` writes for a plant through the controller), the structure's own continuous plant
+    (:func:`fitted_plant`), so a delay that is not a whole number of the log's samples stays exact (the discrete
+    form holds it as a state at z = 0, which has no continuous equivalent); otherwise ``G`` and ``delay_s`` as
+    loaded (``rotorlab.ident.modelio.load_model``).
+
+    Examples
+    --------
+    >>> G, d, meta = load_model("roll-plant-indirect.json", whole_samples=False)  # doctest: +SKIP
+    >>> G, d = file_plant(G, d, meta)  # doctest: +SKIP
+    """
+    settings = meta.get("settings") or {}
+    th = (settings.get("extra") or {}).get("params")
+    fitted = fitted_plant(settings.get("structure"), th) if th else None
+    return fitted if fitted is not None else (G, float(delay_s))

@@ -18,6 +18,7 @@ _OUT = {"deg/s": math.pi / 180.0, "dps": math.pi / 180.0, "rad/s": 1.0}
 
 
 def _models(args):
+    from rotorlab.ident.flightlogs.plant_structures import file_plant
     from rotorlab.ident.modelio import load_model
 
     axes_default = [a.strip() for a in args.axes.split(",") if a.strip()]
@@ -31,7 +32,9 @@ def _models(args):
             axis, path = None, item
         elif axis not in AXES:
             raise CLIError(f"--model {item}: unknown axis {axis!r}; expected AXIS=FILE with AXIS in {', '.join(AXES)}")
+        # a plant through the controller (rotorlab ident's plant-indirect files) as its structure's continuous plant
         G, delay_s, meta = load_model(path, whole_samples=False)
+        G, delay_s = file_plant(G, delay_s, meta)
         if G.ninputs != 1 or G.noutputs != 1:
             raise ConfigError("the model must be SISO (torque command -> rate)", file=path, field="A/B/C/D",
                               got=f"{G.noutputs} outputs x {G.ninputs} inputs")

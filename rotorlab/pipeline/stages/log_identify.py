@@ -8,7 +8,7 @@ plant structures carry that vehicle's IMU mount (``[imu] mount_frequency_hz``, `
 from __future__ import annotations
 
 from rotorlab import autopilots
-from rotorlab.ident.flightlogs.plant_structures import fitted_plant
+from rotorlab.ident.flightlogs.plant_structures import file_plant
 from rotorlab.ident.flightlogs.run import controller_params, identify_flight_log
 from rotorlab.ident.modelio import load_model
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
@@ -101,11 +101,8 @@ def plant_of(path) -> tuple | None:
     units = meta.get("units") or {}
     if units.get((meta.get("input") or [""])[0]) != "1" or units.get((meta.get("output") or [""])[0]) != "rad/s":
         return None
-    settings = meta.get("settings") or {}
-    th = (settings.get("extra") or {}).get("params")
     # the structure's own continuous plant, without the autopilot's gyro filter (the twin's gyro is the raw one)
-    fitted = fitted_plant(settings.get("structure"), th) if th else None
-    return fitted if fitted is not None else (G, float(delay_s))
+    return file_plant(G, delay_s, meta)
 
 
 def run(ctx: StageContext) -> dict:
