@@ -466,7 +466,7 @@ class Simulator:
             if regroup:
                 mujoco.mj_step2(m, d)
                 if self.n_substeps > 1:
-                    mujoco.mj_step(m, d, nstep=self.n_substeps - 1)
+                    mujoco.mj_step(m, d, self.n_substeps - 1)  # nstep positional: pybind parses no keyword
             else:
                 mujoco.mj_step(m, d, nstep=self.n_substeps)
         finally:
@@ -475,7 +475,7 @@ class Simulator:
             # the IMU is sampled at the tick: mj_step1's checks and position/velocity stages (and sensors), then
             # the acceleration stage (the accelerometer) under the controls held over the period, as mj_forward
             mujoco.mj_step1(m, d)
-            if self.forces_at_tick or self._force_sensors:
+            if self._forces_at_tick or self._force_sensors:
                 mujoco.mj_forwardSkip(m, d, _STAGE_VEL, 0)
         else:
             mujoco.mj_forward(m, d)  # the state's stages and sensors at the tick
