@@ -281,6 +281,7 @@ class Simulator:
         # tick than numpy's conversion of a list into a slice of ctrl
         spinup = self.scene.spinup_actuators if len(self.scene.spinup_actuators) else self.scene.thrust_actuators
         self._rotor_slots = [(int(i), int(j)) for i, j in zip(self.scene.thrust_actuators, spinup)]
+        self._ctrl_scratch = self.vehicle.ctrl_scratch(self._n_thrust)
         self.spinup_ids = strided(self.scene.spinup_actuators) if len(self.scene.spinup_actuators) else None
         self.aero_ids = {k: strided(v) for k, v in self.scene.aero_actuators.items()}
         self.mixer = vehicle_mixer(self.vehicle)
@@ -399,7 +400,7 @@ class Simulator:
         self.rotor_pct = rotor
         ctrl = self._ctrl_mv
         # command_to_ctrl in floats (numpy costs several times more for four rotors), one store per actuator
-        for (i, j), c in zip(self._rotor_slots, self.vehicle.command_to_ctrl_floats(rotor)):
+        for (i, j), c in zip(self._rotor_slots, self.vehicle.command_to_ctrl_floats(rotor, self._ctrl_scratch)):
             ctrl[i] = ctrl[j] = c
 
     def add_axis_input(self, commands_pct) -> None:
