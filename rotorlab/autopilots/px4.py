@@ -345,13 +345,13 @@ class AttitudeController:
         # norm), Dcm z columns and the shortest arc as PX4's Quatf functions compute them
         qw, qx, qy, qz = q
         dw, dx, dy, dz = q_sp
-        # the body z axis (third column of the rotation matrix) of q and of q_sp
-        sx, sy, sz = 2 * (qw * qy + qx * qz), 2 * (qy * qz - qw * qx), qw * qw - qx * qx - qy * qy + qz * qz
-        tx, ty, tz = 2 * (dw * dy + dx * dz), 2 * (dy * dz - dw * dx), dw * dw - dx * dx - dy * dy + dz * dz
+        # the body z axis (third column of the rotation matrix) of q and of q_sp (2.0: exactly 2, float * float)
+        sx, sy, sz = 2.0 * (qw * qy + qx * qz), 2.0 * (qy * qz - qw * qx), qw * qw - qx * qx - qy * qy + qz * qz
+        tx, ty, tz = 2.0 * (dw * dy + dx * dz), 2.0 * (dy * dz - dw * dx), dw * dw - dx * dx - dy * dy + dz * dz
         # the smallest rotation taking the one onto the other
         cx, cy, cz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
         dot = sx * tx + sy * ty + sz * tz
-        if sqrt(cx * cx + cy * cy + cz * cz) < 1e-5 and dot < 0:
+        if sqrt(cx * cx + cy * cy + cz * cz) < 1e-5 and dot < 0.0:
             # opposite directions: a half turn about an axis normal to the body z axis
             ox, oy, oz = (1.0, 0.0, 0.0) if abs(sx) < 0.9 else (0.0, 1.0, 0.0)
             w, x, y, z = 0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox
@@ -388,7 +388,7 @@ class AttitudeController:
         r0, r1, r2 = 2.0 * ex * p0, 2.0 * ey * p1, 2.0 * ez * p2
         if yawspeed_sp == yawspeed_sp and abs(yawspeed_sp) != math.inf:
             # the world z axis in the body: the third column of the rotation matrix of q^-1
-            z0, z1, z2 = 2 * (w * y + x * z), 2 * (y * z - w * x), w * w - x * x - y * y + z * z
+            z0, z1, z2 = 2.0 * (w * y + x * z), 2.0 * (y * z - w * x), w * w - x * x - y * y + z * z
             r0, r1, r2 = r0 + z0 * yawspeed_sp, r1 + z1 * yawspeed_sp, r2 + z2 * yawspeed_sp
         l0, l1, l2 = self.rate_limit
         return (l0 if r0 > l0 else (-l0 if r0 < -l0 else r0), l1 if r1 > l1 else (-l1 if r1 < -l1 else r1),
