@@ -8,6 +8,7 @@ realise the transport delay. Sensors are sampled at the tick, as the flight comp
 from __future__ import annotations
 
 import math
+import operator
 
 import mujoco
 import numpy as np
@@ -326,6 +327,7 @@ class Simulator:
             memoryview(v) for v in (d.xquat[af], d.xmat[af], d.xpos[af]))
         self._warn_mv = memoryview(d.warning.number)  # live counts, int32
         self._warn_ids = [(int(w), w.name) for w in DIVERGENCE_WARNINGS]
+        self._warn_counts = operator.itemgetter(*(i for i, _ in self._warn_ids))
         self._gyro_scale = (FLU_TO_FRD * RAD2DEG).tolist()
         self.wind_world = np.zeros(3)
         #: the air's rotation (rad/s, world, z up) this tick: the turbulence's gust gradients (:func:`set_air_motion`)
@@ -484,9 +486,10 @@ class Simulator:
     def check(self) -> str | None:
         """Why the run must stop, or None: NaN, a MuJoCo warning, the rig's stops, a crash or a flip."""
         counts = self._warn_mv
-        for i, name in self._warn_ids:
-            if counts[i] > 0:
-                return diverged_reason(self.time, name)
+        if any(self._warn_counts(counts)):  # one C call on the good path, the loop only to name the warning
+            for i, name in self._warn_ids:
+                if counts[i] > 0:
+                    return diverged_reason(self.time, name)
         return self.stops.reason(self._qpos_mv, self._af_xmat_mv, self._af_xpos_mv, self.data.time)
 
     # ------------------------------------------------------------------ sensing

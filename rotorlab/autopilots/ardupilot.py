@@ -257,7 +257,7 @@ class RateController:
             integ = integral[i]
             if ki == 0.0:
                 integ = 0.0
-            elif not lim or (integ > 0 and e < 0) or (integ < 0 and e > 0):
+            elif not lim or (integ > 0.0 and e < 0.0) or (integ < 0.0 and e > 0.0):
                 integ += e * ki * dt
                 integ = imax if integ > imax else (-imax if integ < -imax else integ)
             integral[i] = integ
@@ -292,7 +292,7 @@ class AttitudeController:
         w = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
         v0, v1, v2 = (w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2, w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
                       w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
-        if w < 0:
+        if w < 0.0:
             w, v0, v1, v2 = -w, -v0, -v1, -v2
         s = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         k = 0.0 if s < 1e-12 else 2.0 * math.atan2(s, w) / s
