@@ -107,6 +107,7 @@ TABLE = ParamTable(NAME, [
 _I_FACTOR_RAD_S = math.radians(400.0)
 _AXIS_INDEX = (0, 1, 2)
 _NO_FLAGS = (False, False, False)  # no saturation reported
+_NEAR_1 = 1 - 1e-5  # PX4's bound on the tilt rotation's x or y part: beyond it a near half turn, the set-point kept
 
 
 def axis_names(axis: str) -> dict[str, str]:
@@ -351,7 +352,7 @@ class AttitudeController:
         # the smallest rotation taking the one onto the other
         cx, cy, cz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
         dot = sx * tx + sy * ty + sz * tz
-        if sqrt(cx * cx + cy * cy + cz * cz) < 1e-5 and dot < 0.0:
+        if dot < 0.0 and sqrt(cx * cx + cy * cy + cz * cz) < 1e-5:  # the cheap test first: both are needed
             # opposite directions: a half turn about an axis normal to the body z axis
             ox, oy, oz = (1.0, 0.0, 0.0) if abs(sx) < 0.9 else (0.0, 1.0, 0.0)
             w, x, y, z = 0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox
@@ -359,7 +360,7 @@ class AttitudeController:
             w, x, y, z = dot + sqrt((sx * sx + sy * sy + sz * sz) * (tx * tx + ty * ty + tz * tz)), cx, cy, cz
         n = sqrt(w * w + x * x + y * y + z * z)
         w, x, y, z = w / n, x / n, y / n, z / n
-        if abs(x) > 1 - 1e-5 or abs(y) > 1 - 1e-5:
+        if x > _NEAR_1 or x < -_NEAR_1 or y > _NEAR_1 or y < -_NEAR_1:  # |x| or |y| > 1 - 1e-5, no abs() calls
             rw, rx, ry, rz = dw, dx, dy, dz
         else:  # the tilt rotation times q: the attitude of thrust aligned, yaw kept
             rw, rx, ry, rz = (w * qw - x * qx - y * qy - z * qz, w * qx + x * qw + y * qz - z * qy,
