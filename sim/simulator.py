@@ -277,14 +277,14 @@ class Simulator:
         #: thrust actuators, their spin-up twins (same ctrl, the rotor-inertia reaction; None: none) and the
         #: rotor aero actuators, as :func:`strided` slices where they are
         self.thrust_ids = strided(self.scene.thrust_actuators)
+        self.spinup_ids = strided(self.scene.spinup_actuators) if len(self.scene.spinup_actuators) else None
+        self.aero_ids = {k: strided(v) for k, v in self.scene.aero_actuators.items()}
         # one simulation's (thrust, spin-up) actuator pair of each rotor, the thrust actuator twice without a
         # spin-up twin: set_rotor_commands stores each control through a memoryview, several times cheaper per
         # tick than numpy's conversion of a list into a slice of ctrl
         spinup = self.scene.spinup_actuators if len(self.scene.spinup_actuators) else self.scene.thrust_actuators
         self._rotor_slots = [(int(i), int(j)) for i, j in zip(self.scene.thrust_actuators, spinup)]
         self._ctrl_scratch = self.vehicle.ctrl_scratch(self._n_thrust)
-        self.spinup_ids = strided(self.scene.spinup_actuators) if len(self.scene.spinup_actuators) else None
-        self.aero_ids = {k: strided(v) for k, v in self.scene.aero_actuators.items()}
         self.mixer = vehicle_mixer(self.vehicle)
         self._limit = self.vehicle.command_limit_pct
         self._airframe = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{PREFIX}airframe")

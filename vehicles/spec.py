@@ -279,7 +279,7 @@ class VehicleSpec:
         b, power = np.zeros(n), np.zeros(n)
         return b, power, memoryview(b), memoryview(power), np.float64(self.rotor.speed_map[1])
 
-    @functools.cached_property  # asked every control tick (rotorlab.sim.simulator.set_rotor_ctrl); the spec is frozen
+    @functools.cached_property  # asked every control tick (command_to_ctrl_floats); the spec is frozen
     def ctrl_per_pct(self) -> float | None:
         """Slope of :meth:`command_to_ctrl` where the map is linear (variable pitch: blade pitch in rad per %),
         None where it is not (variable RPM)."""

@@ -105,7 +105,6 @@ class SensorSuite:
         self._noisy_cols = np.concatenate([np.arange(sl.start, sl.stop) for sl, n in zip(self.slices, noisy) if n]) \
             if self.n_noisy else np.zeros(0, dtype=int)
         self._noisy_list = self._noisy_cols.tolist()
-        self._read_floats = [s.read_floats for s in self.sensors]
         self.noise_std = np.concatenate([s.noise_std for s, n in zip(self.sensors, noisy) if n]) \
             if self.n_noisy else np.zeros(0)
         self.set_current(self.sensors)
