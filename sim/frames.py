@@ -22,12 +22,13 @@ def euler_deg(w: float, x: float, y: float, z: float) -> tuple[float, float, flo
     """Aerospace (roll, pitch, yaw) in degrees of a body (FLU) orientation in the z-up world, from its unit
     quaternion's components (plain floats: math on numpy scalars costs several times more, and this runs twice
     per tick)."""
-    # rows of the rotation matrix that the angles need
-    r00 = 1 - 2 * (y * y + z * z)
-    r10 = 2 * (x * y + w * z)
-    r20 = 2 * (x * z - w * y)
-    r21 = 2 * (y * z + w * x)
-    r22 = 1 - 2 * (x * x + y * y)
+    # rows of the rotation matrix that the angles need (float literals: CPython's float-only operations are the
+    # cheaper ones, and 2.0 * x is 2 * x exactly)
+    r00 = 1.0 - 2.0 * (y * y + z * z)
+    r10 = 2.0 * (x * y + w * z)
+    r20 = 2.0 * (x * z - w * y)
+    r21 = 2.0 * (y * z + w * x)
+    r22 = 1.0 - 2.0 * (x * x + y * y)
     # max(-1.0, min(1.0, r20)) as comparisons, the builtins' very results (a NaN gives 1.0) without two calls
     r20 = r20 if r20 < 1.0 else 1.0
     pitch = math.asin(r20 if r20 > -1.0 else -1.0)  # forward axis rising = nose up

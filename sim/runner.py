@@ -302,9 +302,14 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
     dt = sim.control_dt_s
     p_prev, q_prev, _ = sim.true_rates_dps()
     on_tick = setup.on_tick
-    it = tqdm(range(n_ticks), desc="simulating", unit="tick", disable=not progress, leave=False)
+    it = tqdm(range(n_ticks), desc="simulating", unit="tick", leave=False) if progress else range(n_ticks)
     drive = setup.drive
     noise_on, noise = setup.noise_on, sim.sensor_noise
+    # the methods of every tick bound once (each lookup makes a bound method, every tick)
+    measure, step, set_rotor_commands = sim.measure, fs.step_signals, sim.set_rotor_commands
+    true_attitude_deg, true_rates_dps, append, tick, check = (sim.true_attitude_deg, sim.true_rates_dps, log.append,
+                                                              sim.tick, sim.check)
+    disturbances = sim.disturbances
     # one signal dict for the whole run: measured into, flown by the flight software, completed with the truth
     # and the scenario's columns and logged, tick after tick, so a tick builds and copies no dict (every writer
     # sets the same keys every tick, so nothing of an earlier tick is logged)
@@ -314,24 +319,24 @@ def _loop(sim: Simulator, fs: FlightSoftware, log: RunLog, n_ticks: int, setup, 
         if noise_on is not None:
             sim.sensor_noise = noise and noise_on(t)
         if drive is not None:  # bench tests: the scenario drives the actuators itself, no flight software
-            log.append(t, drive(sim, t))
-            sim.tick(controls_only=True)
+            append(t, drive(sim, t))
+            tick(controls_only=True)
             continue
-        sim.set_rotor_commands(fs.step_signals(t, sim.measure(sig)))
-        sig["phi_true"], sig["theta_true"], _ = sim.true_attitude_deg()
-        p_true, q_true, _ = sim.true_rates_dps()
+        set_rotor_commands(step(t, measure(sig)))
+        sig["phi_true"], sig["theta_true"], _ = true_attitude_deg()
+        p_true, q_true, _ = true_rates_dps()
         sig["p_true"], sig["q_true"] = p_true, q_true
         sig["p_dot"], sig["q_dot"] = (p_true - p_prev) / dt, (q_true - q_prev) / dt
         p_prev, q_prev = p_true, q_true
         if on_tick is not None:
             sig.update(on_tick(sim, sig))
-        for dist in sim.disturbances:
+        for dist in disturbances:
             sig.update(dist.values(sim))
-        log.append(t, sig)
+        append(t, sig)
         if poses is not None:
             poses.record(sim)
-        sim.tick(controls_only=True)  # the loop writes nothing into MuJoCo between ticks but the rotor commands
-        reason = sim.check()
+        tick(controls_only=True)  # the loop writes nothing into MuJoCo between ticks but the rotor commands
+        reason = check()
         if reason:
             return reason
     return None

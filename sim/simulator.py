@@ -8,6 +8,7 @@ realise the transport delay. Sensors are sampled at the tick, as the flight comp
 from __future__ import annotations
 
 import math
+import operator
 
 import mujoco
 import numpy as np
@@ -132,17 +133,9 @@ def strided(ids):
 
 def set_rotor_ctrl(ctrl, rotor_pct, vehicle, thrust, spinup) -> None:
     """Rotor commands (%, one per thrust actuator) into MuJoCo's controls of the thrust actuators and their
-    spin-up twins (same control; None: none): one simulation (``ctrl (nu,)``, ``rotor_pct`` a sequence
-    ``(n_rotors,)``) or a row per simulation (``(n, nu)``, ``(n, n_rotors)``, the batched runner). ``thrust``,
+    spin-up twins (same control; None: none), a row per simulation (``ctrl (n, nu)``, ``rotor_pct (n, n_rotors)``:
+    the batched runner; one simulation writes its own, :meth:`Simulator.set_rotor_commands`). ``thrust``,
     ``spinup``: ids or :func:`strided` slices."""
-    if ctrl.ndim == 1:
-        # one simulation, every tick: command_to_ctrl in floats, one store per actuator group (numpy costs several
-        # times more for four rotors)
-        c = vehicle.command_to_ctrl_floats(rotor_pct)
-        ctrl[thrust] = c
-        if spinup is not None:
-            ctrl[spinup] = c
-        return
     c = vehicle.command_to_ctrl(rotor_pct).T
     # indexed through the transposes (actuator index first): a leading-axis index ctrl[ids] is a plain row
     # selection, where ctrl[..., ids] goes through numpy's general fancy-indexing path on every tick
@@ -286,6 +279,12 @@ class Simulator:
         self.thrust_ids = strided(self.scene.thrust_actuators)
         self.spinup_ids = strided(self.scene.spinup_actuators) if len(self.scene.spinup_actuators) else None
         self.aero_ids = {k: strided(v) for k, v in self.scene.aero_actuators.items()}
+        # one simulation's (thrust, spin-up) actuator pair of each rotor, the thrust actuator twice without a
+        # spin-up twin: set_rotor_commands stores each control through a memoryview, several times cheaper per
+        # tick than numpy's conversion of a list into a slice of ctrl
+        spinup = self.scene.spinup_actuators if len(self.scene.spinup_actuators) else self.scene.thrust_actuators
+        self._rotor_slots = [(int(i), int(j)) for i, j in zip(self.scene.thrust_actuators, spinup)]
+        self._ctrl_scratch = self.vehicle.ctrl_scratch(self._n_thrust)
         self.mixer = vehicle_mixer(self.vehicle)
         self._limit = self.vehicle.command_limit_pct
         self._airframe = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{PREFIX}airframe")
@@ -298,8 +297,6 @@ class Simulator:
             except LookupError:
                 pass
         self.imu = imu_suite(m, self.vehicle)
-        #: the tick ends with the acceleration stage under the held controls, so the accelerometer, force sensors
-        #: and actuator forces are current at the tick; :meth:`tick` says what turning it off saves and costs
         self.forces_at_tick = True
         imu_acc = [s for s in (self.imu.sensors if self.imu else ()) if s.acceleration_stage]
         #: the IMU channels measured in the acceleration stage (the accelerometer's)
@@ -330,6 +327,7 @@ class Simulator:
             memoryview(v) for v in (d.xquat[af], d.xmat[af], d.xpos[af]))
         self._warn_mv = memoryview(d.warning.number)  # live counts, int32
         self._warn_ids = [(int(w), w.name) for w in DIVERGENCE_WARNINGS]
+        self._warn_counts = operator.itemgetter(*(i for i, _ in self._warn_ids))
         self._gyro_scale = (FLU_TO_FRD * RAD2DEG).tolist()
         self.wind_world = np.zeros(3)
         #: the air's rotation (rad/s, world, z up) this tick: the turbulence's gust gradients (:func:`set_air_motion`)
@@ -342,6 +340,19 @@ class Simulator:
         self.reset(seed)
         self._air_map = (air_motion_map(m, self.data, self._airframe, self.scene.aero_actuators)
                          if self._airframe >= 0 else None)
+
+    @property
+    def forces_at_tick(self) -> bool:
+        """The tick ends with the acceleration stage under the held controls, so the accelerometer, force sensors
+        and actuator forces are current at the tick; :meth:`tick` says what turning it off saves and costs, and
+        :meth:`measure` then reads the accelerometer as NaN without converting it."""
+        return self._forces_at_tick
+
+    @forces_at_tick.setter
+    def forces_at_tick(self, on: bool) -> None:
+        self._forces_at_tick = bool(on)
+        if self.imu is not None:
+            self.imu.set_current([s for s in self.imu.sensors if on or not s.acceleration_stage])
 
     # ------------------------------------------------------------------ state
     def reset(self, seed: int | None = None) -> None:
@@ -389,7 +400,10 @@ class Simulator:
         thrust-stand test."""
         rotor = tuple(rotor_pct[: self._n_thrust])  # a copy the caller cannot change under the simulator
         self.rotor_pct = rotor
-        set_rotor_ctrl(self._ctrl_v, rotor, self.vehicle, self.thrust_ids, self.spinup_ids)
+        ctrl = self._ctrl_mv
+        # command_to_ctrl in floats (numpy costs several times more for four rotors), one store per actuator
+        for (i, j), c in zip(self._rotor_slots, self.vehicle.command_to_ctrl_floats(rotor, self._ctrl_scratch)):
+            ctrl[i] = ctrl[j] = c
 
     def add_axis_input(self, commands_pct) -> None:
         """Add axis commands ``[collective, roll, pitch, yaw]`` (%) to this tick's rotor commands at the
@@ -455,7 +469,7 @@ class Simulator:
             if regroup:
                 mujoco.mj_step2(m, d)
                 if self.n_substeps > 1:
-                    mujoco.mj_step(m, d, nstep=self.n_substeps - 1)
+                    mujoco.mj_step(m, d, self.n_substeps - 1)  # nstep positional: pybind parses no keyword
             else:
                 mujoco.mj_step(m, d, nstep=self.n_substeps)
         finally:
@@ -464,7 +478,7 @@ class Simulator:
             # the IMU is sampled at the tick: mj_step1's checks and position/velocity stages (and sensors), then
             # the acceleration stage (the accelerometer) under the controls held over the period, as mj_forward
             mujoco.mj_step1(m, d)
-            if self.forces_at_tick or self._force_sensors:
+            if self._forces_at_tick or self._force_sensors:
                 mujoco.mj_forwardSkip(m, d, _STAGE_VEL, 0)
         else:
             mujoco.mj_forward(m, d)  # the state's stages and sensors at the tick
@@ -472,9 +486,10 @@ class Simulator:
     def check(self) -> str | None:
         """Why the run must stop, or None: NaN, a MuJoCo warning, the rig's stops, a crash or a flip."""
         counts = self._warn_mv
-        for i, name in self._warn_ids:
-            if counts[i] > 0:
-                return diverged_reason(self.time, name)
+        if any(self._warn_counts(counts)):  # one C call on the good path, the loop only to name the warning
+            for i, name in self._warn_ids:
+                if counts[i] > 0:
+                    return diverged_reason(self.time, name)
         return self.stops.reason(self._qpos_mv, self._af_xmat_mv, self._af_xpos_mv, self.data.time)
 
     # ------------------------------------------------------------------ sensing
@@ -486,9 +501,6 @@ class Simulator:
         into a new dict; returns it."""
         # one draw per tick for all noisy channels keeps the stream (and so the log) seed-determined
         out = self.imu.sample(self._sd_mv, self._noise if self.sensor_noise else None, out)
-        if not self.forces_at_tick:  # not computed at this tick (tick): NaN, never a stale reading
-            for c in self.acc_channels:
-                out[c] = math.nan
         if self._free:
             # the free joint's qpos/qvel are the airframe origin's world position and velocity (NED: y, z flip)
             x, y, z = self._pos_mv.tolist()

@@ -240,11 +240,13 @@ class VehicleSpec:
             return cmd * k
         return self.rotor.speed(cmd / 100.0) ** 2
 
-    def command_to_ctrl_floats(self, cmd_pct) -> list:
+    def command_to_ctrl_floats(self, cmd_pct, scratch=None) -> list:
         """:meth:`command_to_ctrl` of one simulation's rotor commands (a sequence of floats, %) as a list of floats,
         the same values bit for bit: the simulator writes them every tick, where numpy's per-call cost on four
         rotors is several times the arithmetic. The clip, the affine map and the square are the same IEEE
-        operations in floats; the power stays numpy's (its SIMD kernel may round differently from libm's ``pow``).
+        operations in floats; the power stays numpy's (its SIMD kernel may round differently from libm's ``pow``),
+        taken in the buffers of ``scratch`` (:meth:`ctrl_scratch` for as many commands) where the caller keeps
+        them from tick to tick, so a tick builds no array.
 
         Examples
         --------
@@ -256,19 +258,28 @@ class VehicleSpec:
         k = self.ctrl_per_pct
         if k is not None:
             return [v * k for v in cmd_pct]
-        a0, a1, a2 = self.rotor.speed_map
+        a0, _, a2 = self.rotor.speed_map
+        if scratch is None or len(scratch[2]) != len(cmd_pct):
+            scratch = self.ctrl_scratch(len(cmd_pct))
+        b, power, b_view, power_view, exponent = scratch
         # b = command / 100 clipped to [0, 1] as np.clip does (a NaN stays NaN)
-        b = []
-        for v in cmd_pct:
+        for i, v in enumerate(cmd_pct):
             x = v / 100.0
-            b.append(0.0 if x < 0.0 else (1.0 if x > 1.0 else x))
+            b_view[i] = 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
+        np.power(b, exponent, power)
         out = []
-        for x in np.power(b, a1).tolist():
+        for x in power_view.tolist():
             w = a0 * x + a2
             out.append(w * w)
         return out
 
-    @functools.cached_property  # asked every control tick (rotorlab.sim.simulator.set_rotor_ctrl); the spec is frozen
+    def ctrl_scratch(self, n: int) -> tuple:
+        """Buffers for :meth:`command_to_ctrl_floats` of ``n`` commands, one set per caller (a simulator): the
+        clipped commands and their power as arrays and memoryviews, and the exponent as a numpy scalar."""
+        b, power = np.zeros(n), np.zeros(n)
+        return b, power, memoryview(b), memoryview(power), np.float64(self.rotor.speed_map[1])
+
+    @functools.cached_property  # asked every control tick (command_to_ctrl_floats); the spec is frozen
     def ctrl_per_pct(self) -> float | None:
         """Slope of :meth:`command_to_ctrl` where the map is linear (variable pitch: blade pitch in rad per %),
         None where it is not (variable RPM)."""

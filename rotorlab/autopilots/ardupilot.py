@@ -59,6 +59,8 @@ _ATT = "ArduCopter 4.x AC_AttitudeControl.cpp/.h"
 _INS = "ArduPilot AP_InertialSensor.cpp"
 _SCHED = "ArduCopter 4.x AP_Scheduler.cpp"
 _TAG = {"roll": "RLL", "pitch": "PIT", "yaw": "YAW"}
+_AXIS_INDEX = (0, 1, 2)
+_NO_FLAGS = (False, False, False)  # no motor limit reported
 _RATE_MAX = {"roll": "ATC_RATE_R_MAX", "pitch": "ATC_RATE_P_MAX", "yaw": "ATC_RATE_Y_MAX"}
 
 
@@ -232,36 +234,37 @@ class RateController:
 
         ``limit`` (bool per axis): the motors report saturation on that axis, so the integrator may only shrink.
         """
+        # it runs every tick: each axis's gains and states come out of one zip, not indexed per use
         gb0, gb1, gb2, ga1, ga2 = self._gyro
         dt = self.dt
         first = self._reset_filter
         self._reset_filter = False
-        out = [0.0, 0.0, 0.0]
-        for i in range(3):
-            kp, ki, kd, ff, imax, a_t, a_e, a_d = self._axes[i]
-            r = float(rate_sp[i])
-            g = self._g[i]
-            x0 = float(rate[i]) - ga1 * g[0] - ga2 * g[1]
-            y = gb0 * x0 + gb1 * g[0] + gb2 * g[1]
-            g[1], g[0] = g[0], x0
+        target, error, derivative, integral = self.target, self.error, self.derivative, self.integral
+        out = []
+        for i, r, gyro, (kp, ki, kd, ff, imax, a_t, a_e, a_d), g, lim in zip(
+                _AXIS_INDEX, rate_sp, rate, self._axes, self._g, _NO_FLAGS if limit is None else limit):
+            g0, g1 = g
+            x0 = gyro - ga1 * g0 - ga2 * g1
+            y = gb0 * x0 + gb1 * g0 + gb2 * g1
+            g[0], g[1] = x0, g0
             if first:
                 t, e, d = r, r - y, 0.0
             else:
-                t = self.target[i]
+                t = target[i]
                 t += a_t * (r - t)
-                e_last = self.error[i]
+                e_last = error[i]
                 e = e_last + a_e * ((t - y) - e_last)
-                d = self.derivative[i]
+                d = derivative[i]
                 d += a_d * ((e - e_last) / dt - d)
-            self.target[i], self.error[i], self.derivative[i] = t, e, d
-            integ = self.integral[i]
+            target[i], error[i], derivative[i] = t, e, d
+            integ = integral[i]
             if ki == 0.0:
                 integ = 0.0
-            elif limit is None or not limit[i] or (integ > 0 and e < 0) or (integ < 0 and e > 0):
+            elif not lim or (integ > 0.0 and e < 0.0) or (integ < 0.0 and e > 0.0):
                 integ += e * ki * dt
                 integ = imax if integ > imax else (-imax if integ < -imax else integ)
-            self.integral[i] = integ
-            out[i] = kp * e + integ + kd * d + ff * t
+            integral[i] = integ
+            out.append(kp * e + integ + kd * d + ff * t)
         return tuple(out)
 
 
@@ -292,7 +295,7 @@ class AttitudeController:
         w = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
         v0, v1, v2 = (w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2, w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
                       w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
-        if w < 0:
+        if w < 0.0:
             w, v0, v1, v2 = -w, -v0, -v1, -v2
         s = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         k = 0.0 if s < 1e-12 else 2.0 * math.atan2(s, w) / s

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from math import acos, asin, cos, sin, sqrt  # bound once: the attitude law calls them every tick
 
 import control as ct
 
@@ -107,6 +108,9 @@ TABLE = ParamTable(NAME, [
 ])
 
 _I_FACTOR_RAD_S = math.radians(400.0)
+_AXIS_INDEX = (0, 1, 2)
+_NO_FLAGS = (False, False, False)  # no saturation reported
+_NEAR_1 = 1 - 1e-5  # PX4's bound on the tilt rotation's x or y part: beyond it a near half turn, the set-point kept
 
 
 def axis_names(axis: str) -> dict[str, str]:
@@ -261,35 +265,42 @@ class RateController:
         ``sat_pos`` / ``sat_neg`` (bool per axis) are the allocator's saturation flags; ``landed`` freezes the
         integrator. The output is not clipped (the mixer saturates).
         """
+        # it runs every tick: each axis's gains and filter states come out of one zip (no indexing per use), and
+        # an axis with D = 0 skips its D-term filter, whose output it would multiply by zero (an exact zero
+        # changes no sum but, at most, the sign of a zero output)
         gb0, gb1, gb2, ga1, ga2 = self._gyro
         db0, db1, db2, da1, da2 = self._dterm
         dt = self.dt
-        out = [0.0, 0.0, 0.0]
-        for i in range(3):
-            kp, ki, kd, ff, lim = self._gains[i]
-            r = float(rate_sp[i])
-            g = self._g[i]
-            x0 = float(rate[i]) - ga1 * g[0] - ga2 * g[1]
-            w = gb0 * x0 + gb1 * g[0] + gb2 * g[1]
-            g[1], g[0] = g[0], x0
-            d = self._d[i]
-            x0 = (w - self._w_prev[i]) / dt - da1 * d[0] - da2 * d[1]
-            acc = db0 * x0 + db1 * d[0] + db2 * d[1]
-            d[1], d[0] = d[0], x0
-            self._w_prev[i] = w
+        integral, rate_error, w_prev = self.integral, self.rate_error, self._w_prev
+        out = []
+        for i, r, y, (kp, ki, kd, ff, lim), g, d, s_pos, s_neg in zip(
+                _AXIS_INDEX, rate_sp, rate, self._gains, self._g, self._d,
+                _NO_FLAGS if sat_pos is None else sat_pos, _NO_FLAGS if sat_neg is None else sat_neg):
+            g0, g1 = g
+            x0 = y - ga1 * g0 - ga2 * g1
+            w = gb0 * x0 + gb1 * g0 + gb2 * g1
+            g[0], g[1] = x0, g0
             e = r - w
-            self.rate_error[i] = e
-            out[i] = kp * e + self.integral[i] - kd * acc + ff * r
+            rate_error[i] = e
+            integ = integral[i]
+            if kd:
+                d0, d1 = d
+                x0 = (w - w_prev[i]) / dt - da1 * d0 - da2 * d1
+                d[0], d[1] = x0, d0
+                w_prev[i] = w
+                out.append(kp * e + integ - kd * (db0 * x0 + db1 * d0 + db2 * d1) + ff * r)
+            else:
+                out.append(kp * e + integ + ff * r)
             if not landed:
-                if sat_pos is not None and sat_pos[i] and e > 0.0:
+                if s_pos and e > 0.0:
                     e = 0.0
-                if sat_neg is not None and sat_neg[i] and e < 0.0:
+                if s_neg and e < 0.0:
                     e = 0.0
                 f = e / _I_FACTOR_RAD_S
                 f = 1.0 - f * f
-                nxt = self.integral[i] + (f if f > 0.0 else 0.0) * ki * e * dt
-                if math.isfinite(nxt):
-                    self.integral[i] = lim if nxt > lim else (-lim if nxt < -lim else nxt)
+                nxt = integ + (f if f > 0.0 else 0.0) * ki * e * dt
+                if nxt - nxt == 0.0:  # finite (inf - inf and NaN give NaN): math.isfinite without a call
+                    integral[i] = lim if nxt > lim else (-lim if nxt < -lim else nxt)
         self._yaw_y += self._yaw_alpha * (out[2] - self._yaw_y)
         out[2] = self._yaw_y
         return tuple(out)
@@ -338,48 +349,50 @@ class AttitudeController:
         # norm), Dcm z columns and the shortest arc as PX4's Quatf functions compute them
         qw, qx, qy, qz = q
         dw, dx, dy, dz = q_sp
-        # the body z axis (third column of the rotation matrix) of q and of q_sp
-        sx, sy, sz = 2 * (qw * qy + qx * qz), 2 * (qy * qz - qw * qx), qw * qw - qx * qx - qy * qy + qz * qz
-        tx, ty, tz = 2 * (dw * dy + dx * dz), 2 * (dy * dz - dw * dx), dw * dw - dx * dx - dy * dy + dz * dz
+        # the body z axis (third column of the rotation matrix) of q and of q_sp (2.0: exactly 2, float * float)
+        sx, sy, sz = 2.0 * (qw * qy + qx * qz), 2.0 * (qy * qz - qw * qx), qw * qw - qx * qx - qy * qy + qz * qz
+        tx, ty, tz = 2.0 * (dw * dy + dx * dz), 2.0 * (dy * dz - dw * dx), dw * dw - dx * dx - dy * dy + dz * dz
         # the smallest rotation taking the one onto the other
         cx, cy, cz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
         dot = sx * tx + sy * ty + sz * tz
-        if math.sqrt(cx * cx + cy * cy + cz * cz) < 1e-5 and dot < 0:
+        if dot < 0.0 and sqrt(cx * cx + cy * cy + cz * cz) < 1e-5:  # the cheap test first: both are needed
             # opposite directions: a half turn about an axis normal to the body z axis
             ox, oy, oz = (1.0, 0.0, 0.0) if abs(sx) < 0.9 else (0.0, 1.0, 0.0)
             w, x, y, z = 0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox
         else:
-            w, x, y, z = dot + math.sqrt((sx * sx + sy * sy + sz * sz) * (tx * tx + ty * ty + tz * tz)), cx, cy, cz
-        n = math.sqrt(w * w + x * x + y * y + z * z)
+            w, x, y, z = dot + sqrt((sx * sx + sy * sy + sz * sz) * (tx * tx + ty * ty + tz * tz)), cx, cy, cz
+        n = sqrt(w * w + x * x + y * y + z * z)
         w, x, y, z = w / n, x / n, y / n, z / n
-        if abs(x) > 1 - 1e-5 or abs(y) > 1 - 1e-5:
+        if x > _NEAR_1 or x < -_NEAR_1 or y > _NEAR_1 or y < -_NEAR_1:  # |x| or |y| > 1 - 1e-5, no abs() calls
             rw, rx, ry, rz = dw, dx, dy, dz
         else:  # the tilt rotation times q: the attitude of thrust aligned, yaw kept
             rw, rx, ry, rz = (w * qw - x * qx - y * qy - z * qz, w * qx + x * qw + y * qz - z * qy,
                               w * qy - x * qz + y * qw + z * qx, w * qz + x * qy - y * qx + z * qw)
-        # q_mix = canonical(qd_red^-1 q_sp); only its w and z parts are read
+        # q_mix = canonical(qd_red^-1 q_sp): only its w and z parts are read, and its x and y only decide the sign
+        # where w is zero (canonical)
         n = rw * rw + rx * rx + ry * ry + rz * rz
         w, x, y, z = rw / n, -rx / n, -ry / n, -rz / n
-        mix = (w * dw - x * dx - y * dy - z * dz, w * dx + x * dw + y * dz - z * dy,
-               w * dy - x * dz + y * dw + z * dx, w * dz + x * dy - y * dx + z * dw)
-        mw, _, _, mz = _canonical(mix)
+        mw, mz = w * dw - x * dx - y * dy - z * dz, w * dz + x * dy - y * dx + z * dw
+        if not mw > 0.0:
+            mw, _, _, mz = _canonical((mw, w * dx + x * dw + y * dz - z * dy, w * dy - x * dz + y * dw + z * dx, mz))
         c0 = -1.0 if mw < -1.0 else (1.0 if mw > 1.0 else mw)  # min(max(v, -1), 1), a NaN kept
         c3 = -1.0 if mz < -1.0 else (1.0 if mz > 1.0 else mz)
         yw = self.yaw_w
-        ew, ez = math.cos(yw * math.acos(c0)), math.sin(yw * math.asin(c3))
-        # q_d = qd_red (ew, 0, 0, ez), the zero terms kept: the very sums of a general product
-        dw, dx, dy, dz = (rw * ew - rx * 0.0 - ry * 0.0 - rz * ez, rw * 0.0 + rx * ew + ry * ez - rz * 0.0,
-                          rw * 0.0 - rx * ez + ry * ew + rz * 0.0, rw * ez + rx * 0.0 - ry * 0.0 + rz * ew)
+        ew, ez = cos(yw * acos(c0)), sin(yw * asin(c3))
+        # q_d = qd_red (ew, 0, 0, ez): the general product's terms with a zero factor left out (a zero product
+        # changes no non-zero sum; at most the sign of an exact zero)
+        dw, dx, dy, dz = rw * ew - rz * ez, rx * ew + ry * ez, -rx * ez + ry * ew, rw * ez + rz * ew
         # q_e = canonical(q^-1 q_d)
         n = qw * qw + qx * qx + qy * qy + qz * qz
         w, x, y, z = qw / n, -qx / n, -qy / n, -qz / n
-        _, ex, ey, ez = _canonical((w * dw - x * dx - y * dy - z * dz, w * dx + x * dw + y * dz - z * dy,
-                                    w * dy - x * dz + y * dw + z * dx, w * dz + x * dy - y * dx + z * dw))
+        e = (w * dw - x * dx - y * dy - z * dz, w * dx + x * dw + y * dz - z * dy,
+             w * dy - x * dz + y * dw + z * dx, w * dz + x * dy - y * dx + z * dw)
+        _, ex, ey, ez = e if e[0] > 0.0 else _canonical(e)
         p0, p1, p2 = self.p
         r0, r1, r2 = 2.0 * ex * p0, 2.0 * ey * p1, 2.0 * ez * p2
         if yawspeed_sp == yawspeed_sp and abs(yawspeed_sp) != math.inf:
             # the world z axis in the body: the third column of the rotation matrix of q^-1
-            z0, z1, z2 = 2 * (w * y + x * z), 2 * (y * z - w * x), w * w - x * x - y * y + z * z
+            z0, z1, z2 = 2.0 * (w * y + x * z), 2.0 * (y * z - w * x), w * w - x * x - y * y + z * z
             r0, r1, r2 = r0 + z0 * yawspeed_sp, r1 + z1 * yawspeed_sp, r2 + z2 * yawspeed_sp
         l0, l1, l2 = self.rate_limit
         return (l0 if r0 > l0 else (-l0 if r0 < -l0 else r0), l1 if r1 > l1 else (-l1 if r1 < -l1 else r1),

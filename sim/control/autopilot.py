@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Mapping
+from math import cos, sin  # bound once: euler_to_quat runs twice a tick
 from pathlib import Path
 
 from rotorlab import autopilots
@@ -34,9 +35,11 @@ _D2R = math.pi / 180.0
 
 def euler_to_quat(phi_rad: float, theta_rad: float, psi_rad: float) -> tuple:
     """Quaternion ``(w, x, y, z)`` of the yaw-pitch-roll (Z-Y-X) Euler angles, body (FRD) to world (NED)."""
-    cr, sr = math.cos(phi_rad / 2), math.sin(phi_rad / 2)
-    cp, sp = math.cos(theta_rad / 2), math.sin(theta_rad / 2)
-    cy, sy = math.cos(psi_rad / 2), math.sin(psi_rad / 2)
+    # x * 0.5 is x / 2 exactly, and float * float is the cheaper operation in CPython (as 2.0 for 2 in the laws)
+    h, t, y = phi_rad * 0.5, theta_rad * 0.5, psi_rad * 0.5
+    cr, sr = cos(h), sin(h)
+    cp, sp = cos(t), sin(t)
+    cy, sy = cos(y), sin(y)
     return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
             cr * cp * sy - sr * sp * cy)
 

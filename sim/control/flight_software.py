@@ -273,10 +273,15 @@ class FlightSoftware:
         p, q, r = sig["p"], sig["q"], sig["r"]
         mode = self.mode
 
-        # outer loops
+        # outer loops; a set-point set or latched and not excited is looked up in place, without _setpoint's call
+        latched = self._latched
         if mode == "position":
-            x_ref = self._setpoint("x_ref", refs, sig, "x", t)
-            y_ref = self._setpoint("y_ref", refs, sig, "y", t)
+            x_ref = refs.get("x_ref", latched.get("x_ref"))
+            if x_ref is None or exc:
+                x_ref = self._setpoint("x_ref", refs, sig, "x", t)
+            y_ref = refs.get("y_ref", latched.get("y_ref"))
+            if y_ref is None or exc:
+                y_ref = self._setpoint("y_ref", refs, sig, "y", t)
             phi_ref, theta_ref = self.position.step(x_ref, y_ref, sig["x"], sig["y"], sig["vx"], sig["vy"], psi)
             if exc:
                 phi_ref += self._exc("phi_ref", t)
@@ -288,14 +293,16 @@ class FlightSoftware:
             if exc:
                 phi_ref += self._exc("phi_ref", t)
                 theta_ref += self._exc("theta_ref", t)
-        psi_ref = refs.get("psi_ref")
+        psi_ref = refs.get("psi_ref", latched.get("psi_ref"))
         if psi_ref is None or exc:
             psi_ref = self._setpoint("psi_ref", refs, sig, "psi", t)
         if mode == "position" or self.altitude_hold or "z_ref" in refs:
             if self.n is not None:
                 raise ConfigError("a position or altitude set-point needs the flight software of one simulation",
                                   field="reference", expected="attitude set-points and commands", got=sorted(refs))
-            z_ref = self._setpoint("z_ref", refs, sig, "z", t)
+            z_ref = refs.get("z_ref", latched.get("z_ref"))
+            if z_ref is None or exc:
+                z_ref = self._setpoint("z_ref", refs, sig, "z", t)
             u_col = self.altitude.step(-z_ref, -sig["z"], -sig["vz"], phi, theta)
             sig["z_ref"] = z_ref
         else:

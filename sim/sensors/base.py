@@ -13,6 +13,7 @@ a reading is ``value + (bias + std * z)`` (:class:`NoiseStream`).
 
 from __future__ import annotations
 
+import math
 from operator import add
 
 import mujoco
@@ -104,10 +105,25 @@ class SensorSuite:
         self._noisy_cols = np.concatenate([np.arange(sl.start, sl.stop) for sl, n in zip(self.slices, noisy) if n]) \
             if self.n_noisy else np.zeros(0, dtype=int)
         self._noisy_list = self._noisy_cols.tolist()
-        self._all_noisy = self.n_noisy == len(self.channels)
-        self._read_floats = [s.read_floats for s in self.sensors]
         self.noise_std = np.concatenate([s.noise_std for s, n in zip(self.sensors, noisy) if n]) \
             if self.n_noisy else np.zeros(0)
+        self.set_current(self.sensors)
+
+    def set_current(self, current) -> None:
+        """The sensors whose data MuJoCo computes at the ticks (default: all). One simulation's :meth:`sample`
+        reads only these; the others' channels are NaN, never a stale reading, and are not converted
+        (:attr:`rotorlab.sim.simulator.Simulator.forces_at_tick` off: the accelerometer). Their noise is still
+        drawn, so the stream, and every other channel's reading, is the seed's whatever is current."""
+        live = [s in current for s in self.sensors]
+        self._reads = [s.read_floats for s, ok in zip(self.sensors, live) if ok]
+        cols = [k for sl, ok in zip(self.slices, live) if ok for k in range(sl.start, sl.stop)]
+        self._live_channels = [self.channels[k] for k in cols]
+        self._stale = {c: math.nan for s, ok in zip(self.sensors, live) if not ok for c in s.channels}
+        # the noise row's index of each current channel (-1: noise-free); the usual case, the current channels
+        # the first of the noisy ones, adds the row in one map
+        noise_of = {k: j for j, k in enumerate(self._noisy_list)}
+        self._live_noise = [noise_of.get(k, -1) for k in cols]
+        self._noise_prefix = self._live_noise == list(range(len(cols)))
 
     def draw_bias(self, rng: np.random.Generator) -> np.ndarray:
         """Turn-on biases of the noisy channels ``(n_noisy,)``: one ``normal(0, bias_std, n)`` per biased sensor."""
@@ -137,22 +153,30 @@ class SensorSuite:
         :meth:`rotorlab.sim.control.flight_software.FlightSoftware.step_signals`), else into a new dict; returns
         it. The simulator and the batched runner both sample through here."""
         if x.ndim == 1:
-            # one simulation: floats throughout (Sensor.read_floats), the same sums as add_noise's
+            # one simulation: floats throughout (Sensor.read_floats), the same sums as add_noise's, the current
+            # sensors only (set_current)
             xs = x.tolist()
             vals = []
-            for read in self._read_floats:
+            for read in self._reads:
                 vals += read(xs)
             if noise is not None:
-                if self._all_noisy:
-                    vals = map(add, vals, noise.next_floats())  # the additions in C, consumed by the dict below
+                row = noise.next_floats()
+                if self._noise_prefix:
+                    vals = map(add, vals, row)  # the additions in C, consumed by the dict below
                 else:
-                    for i, n in zip(self._noisy_list, noise.next_floats()):
-                        vals[i] += n
-        else:
-            vals = self.read(x)
-            if noise is not None:
-                self.add_noise(vals, noise.next())
-            vals = vals.T
+                    for i, k in enumerate(self._live_noise):
+                        if k >= 0:
+                            vals[i] += row[k]
+            if out is None:
+                out = {}
+            out.update(zip(self._live_channels, vals))
+            if self._stale:
+                out.update(self._stale)
+            return out
+        vals = self.read(x)
+        if noise is not None:
+            self.add_noise(vals, noise.next())
+        vals = vals.T
         if out is None:
             return dict(zip(self.channels, vals))
         out.update(zip(self.channels, vals))
