@@ -13,7 +13,8 @@ structure and, where the structure is full order, the optimal bound from ``contr
 ``rand4``     a random lightly unstable 4-state plant, 2 inputs, 2 measurements: a full-order controller.
 ``flex20``    a lightly damped flexible structure (:func:`flex20`, seeds 0-2 as ``flex20s0`` ...): 20 modes from 1
               to 140 rad/s, 40 states, 2 non-collocated force actuators and 2 position sensors, static 2x2 output
-              feedback whose optimum gains are about 10^3 (the engine's scale-invariance problem).
+              feedback whose best gains are 10^4-10^5 (the engine's scale-invariance problem; reference values
+              from the gain-scale sweep of benchmarks/flex_reference.py).
 
 :func:`rescaled` gives any problem with its control inputs and measurements in other units (the optimum's
 gamma is the same, its gains are divided by the factors).
@@ -162,10 +163,12 @@ def flex20(seed: int = 0) -> Problem:
     alternating sign), with seeded ``a``, ``b``; the actuators push in newtons on modes of :data:`MODAL_MASS_KG` (the
     disturbance and the displacements are in modal units). One disturbance force on the velocities, distributed as a
     seeded smooth load. Performance ``z = [diag(q) x; r u]`` with heavy state weights ``q`` drawn log-uniformly
-    in [300, 3000] and a small control weight ``r = 1``; no sensor noise (``D21 = 0``). The H-inf optimum of
-    static 2x2 position feedback has gains of 10^3-10^4 N per unit displacement, nearly rank one (flex20s0: singular
-    values 1.4e4 and 2.2e2 at a local minimum 3.7 % above the best of 50 starts; one combination of the sensors
-    drives both actuators), and the start from K = 0 ends in a low-gain valley 30 % above the best.
+    in [300, 3000] and a small control weight ``r = 1``; no sensor noise (``D21 = 0``). The best static 2x2
+    position feedback known has gains of 10^4-10^5 N per unit displacement, nearly rank one (one combination of the
+    sensors drives both actuators), and stabilises only in a thin band of gain scale: flex20s0's best (48,623, from
+    benchmarks/flex_reference.py) has singular values 1.8e5 and 1.2e2 and is unstable at half and at twice its
+    largest one. Local minima at lower gains abound (flex20s0: 55,022 at singular values 1.4e4 and 2.2e2, which 13
+    of 50 random starts reach), and the start from K = 0 ends in a low-gain valley about 40 % above the best.
     """
     rng = np.random.default_rng(1000 + seed)
     n = 20
