@@ -258,6 +258,26 @@ def test_resume_after_an_interrupted_stage_reproduces_the_numbers(run, tmp_path,
     assert status["validate"] == status["report"] == "cached"  # so the downstream stages stay valid
 
 
+def test_a_stage_committed_before_a_kill_is_recorded_in_the_manifest_on_resume(run, tmp_path):
+    """SIGKILL between a stage's commit (its folder renamed into place) and the manifest's update leaves a stage
+    the manifest does not list; the resumed run finds it cached and records it with the hash it was built from
+    and its output hash (the manifest then equals an uninterrupted run's)."""
+    out = tmp_path / "run"
+    shutil.copytree(run[0], out)
+    man = json.loads((out / "manifest.json").read_text())
+    ref = dict(man["stages"])
+    del man["stages"]["experiments"]
+    (out / "manifest.json").write_text(json.dumps(man))
+    lines = []
+    run_pipeline(PipelineOptions(vehicle="anteos-p2a2", out=out, level=LEVEL, seed=3, executor="serial",
+                                 progress=False), log=lines.append)
+    assert all(" cached " in ln for ln in lines if ln.startswith("["))
+    after = json.loads((out / "manifest.json").read_text())["stages"]
+    assert set(after) == set(ref)
+    for key in ("hash", "output_hash", "seconds"):
+        assert after["experiments"][key] == ref["experiments"][key]
+
+
 def test_disk_full_during_a_stage_leaves_no_final_file(run, tmp_path, monkeypatch):
     from rotorlab.pipeline.stages import report
 

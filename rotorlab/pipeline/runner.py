@@ -366,6 +366,12 @@ def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log, *, regis
             cached = _cached_hash(final, h, man["stages"].get(stage), log)
             if cached is not None:
                 out_hashes[stage] = cached
+                entry = man["stages"].get(stage)
+                if not (isinstance(entry, dict) and entry.get("hash") == h and entry.get("output_hash") == cached):
+                    # committed, but the run was killed before the manifest recorded it
+                    seconds = read_json(final / "stage.json", "stage record", note=False).get("seconds", 0.0)
+                    man["stages"][stage] = {"hash": h, "output_hash": cached, "seconds": round(float(seconds), 3)}
+                    atomic.write_json(out / "manifest.json", man)
                 log(f"[{i}/{len(order)}] {stage:<12} cached ({final})")
                 continue
             if executor is None:
