@@ -64,7 +64,7 @@ def run(ctx: StageContext) -> dict:
     baselines = {"log": current, "defaults": ap.TABLE.defaults()}
     rejected = {}
     if ap.NAME == "px4":
-        # PX4 autotune flies its excitation on the gains flown in the log; an axis it rejects keeps them
+        # PX4 autotune identifies the loops flying the log's gains; when it refuses, all of them stay
         gains, rejected = T.px4_autotune_params({a: p[0] for a, p in plants.items()}, current)
         baselines["px4-autotune"] = {**current, **gains}
     spec_text = generic_spec(ap, plants, dt_s, current, baselines, model=f"the flight log {ident['log']}")
