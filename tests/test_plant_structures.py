@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from rotorlab.autopilots.filters import butter2_ss
-from rotorlab.ident.flightlogs.plant_structures import MOTOR_PARAMS, STRUCTURES, fitted_plant, plant_structure
+from rotorlab.ident.flightlogs.plant_structures import (
+    MOTOR_PARAMS,
+    STRUCTURES,
+    fitted_plant,
+    plant_structure,
+    rate_angle_plant_structure,
+)
 from rotorlab.ident.greybox import oe_fit, simulate_greybox
 from rotorlab.lti import c2d_zoh_delay
 
@@ -60,6 +66,29 @@ def test_gyro_filter_follows_the_zoh_plant_and_stays_in_the_fit():
     for w in (1.0, 100.0, 350.0):
         zw = np.exp(1j * w * DT)
         assert complex(ct.evalfr(got, zw)) == pytest.approx(complex(ct.evalfr(want, zw)), rel=1e-4)
+
+
+def test_the_angle_loop_structure_filters_the_rate_and_not_the_attitude():
+    """Through the angle loop the fit sees two outputs: the rate through the autopilot's gyro low-pass (as the rate
+    controller and the log see it) and the attitude, which the estimator integrates from the unfiltered gyro. By
+    hand: ``[F G; G / s]`` with ``G = K e^(-s d) / (s (tau s + 1))`` discretised exactly."""
+    F = lambda dt: butter2_ss(1.0 / dt, 20.0)  # noqa: E731 - ArduCopter's INS_GYRO_FILTER default
+    theta = {"K": 198.0, "tau_s": 0.015, "delay_s": 0.0061}
+    G = ct.ss(ct.tf([theta["K"]], [theta["tau_s"], 1.0, 0.0]))
+    rate = ct.series(c2d_zoh_delay(G, DT, theta["delay_s"]), butter2_ss(1 / DT, 20.0))
+    att = c2d_zoh_delay(ct.ss(ct.series(G, ct.tf([1.0], [1.0, 0.0]))), DT, theta["delay_s"])
+    got = rate_angle_plant_structure(gyro_filter=F).discretize(DT, theta)
+    bare = rate_angle_plant_structure().discretize(DT, theta)
+    for w in (0.5, 20.0, 125.0, 500.0):
+        zw = np.exp(1j * w * DT)
+        g = ct.evalfr(got, zw)
+        assert complex(g[0, 0]) == pytest.approx(complex(ct.evalfr(rate, zw)), rel=1e-8)
+        assert complex(g[1, 0]) == pytest.approx(complex(ct.evalfr(att, zw)), rel=1e-8)
+        assert complex(ct.evalfr(bare, zw)[1, 0]) == pytest.approx(complex(g[1, 0]), rel=1e-12)
+    # the filter's phase at 20 Hz is the lag the structure without it would fit into the motors: 90 deg
+    z20 = np.exp(2j * np.pi * 20.0 * DT)
+    lag_deg = np.degrees(np.angle(ct.evalfr(bare, z20)[0, 0] / ct.evalfr(got, z20)[0, 0]))
+    assert lag_deg == pytest.approx(90.0, abs=1.0)
 
 
 def test_motors_given_are_fixed():

@@ -152,9 +152,16 @@ def with_imu_mount(m: GreyBoxModel, frequency_hz: float, damping_ratio: float) -
     return GreyBoxModel(m.name, params, build, m.delay, m.inputs, m.outputs, m.output_filter)
 
 
-def rate_angle_plant_structure(K: float = 100.0, tau_s: float = 0.03, delay_s: float = 0.005) -> GreyBoxModel:
+def rate_angle_plant_structure(K: float = 100.0, tau_s: float = 0.03, delay_s: float = 0.005,
+                               gyro_filter: Callable[[float], ct.StateSpace] | None = None) -> GreyBoxModel:
     """:func:`rate_plant_structure` with the attitude as a second output: ``[rate, att]`` from ``rate_out``, the
     attitude the rate integrated (rad), for a loop closed through the angle controller.
+
+    ``gyro_filter`` (as in :func:`plant_structure`) filters the rate output only: the rate controller and the
+    logged rate see the gyro through the autopilot's low-pass, while the attitude comes from the estimator,
+    which integrates the unfiltered gyro (PX4's EKF2 and ArduPilot's EKF3 take the IMU's delta angles). Left out,
+    the filter's lag would be fitted into the motors' lag and delay, and counted again wherever the fitted plant
+    is closed with the autopilot's filter (the twin check and the tuning).
 
     Examples
     --------
@@ -169,8 +176,11 @@ def rate_angle_plant_structure(K: float = 100.0, tau_s: float = 0.03, delay_s: f
         A = [[-1.0 / th["tau_s"], 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
         return ct.ss(A, [[th["K"] / th["tau_s"]], [0.0], [0.0]], [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], [[0.0], [0.0]])
 
+    def output_filter(dt):
+        return ct.append(gyro_filter(dt), ct.ss([], [], [], [[1.0]], dt))
+
     return GreyBoxModel("rate-angle-plant", params, build, delay_s="delay_s", inputs=["rate_out"],
-                        outputs=["rate", "att"])
+                        outputs=["rate", "att"], output_filter=output_filter if gyro_filter else None)
 
 
 #: axis -> the constructor of its rate plant's structure

@@ -16,7 +16,7 @@ from . import read_flight_log
 from .flightlog import FlightLog
 from .identify import AxisModel, identify_direct, identify_plant_indirect, identify_plant_through_angle_loop
 from .names import AXES
-from .plant_structures import MOTOR_PARAMS, SHARES_MOTORS, plant_structure
+from .plant_structures import MOTOR_PARAMS, SHARES_MOTORS, plant_structure, rate_angle_plant_structure
 from .windows import MIN_RMS, holdout_excitation, select_windows
 
 __all__ = ["FlightLogResult", "identify_flight_log", "autopilot_controller", "autopilot_gyro_filter", "controller_params",
@@ -248,8 +248,9 @@ def identify_flight_log(path, out_dir, axes=None, *, windows=None, holdout: floa
                 rec_a = angle_record(log, axis, rec.dt)
                 split_a = select_windows(log, rec_a, "att_sp", "rate", holdout=holdout, override=windows, min_rms={})
                 models["closed-loop-angle"] = identify_direct(rec_a, split_a, "closed-loop-angle")
-                models["plant-indirect-angle"] = identify_plant_through_angle_loop(rec_a, split_a, C, share["P_log"],
-                                                                                   share["F"])
+                models["plant-indirect-angle"] = identify_plant_through_angle_loop(
+                    rec_a, split_a, C, share["P_log"], share["F"],
+                    rate_angle_plant_structure(gyro_filter=autopilot_gyro_filter(log)))
                 recs["closed-loop-angle"] = recs["plant-indirect-angle"] = rec_a
             except (DataError, ValueError) as exc:
                 models.pop("closed-loop-angle", None)
