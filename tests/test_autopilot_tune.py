@@ -413,3 +413,20 @@ def test_gyro_filter_off_adds_no_lag_to_the_band_and_the_autotune_rule_runs():
     p = autopilots.px4.TABLE.defaults() | {"IMU_GYRO_CUTOFF": 0.0}
     gains, rejected = T.px4_autotune_params({"pitch": T.axis_plant(G_PITCH, 0.028, dt)}, p)
     assert not rejected and gains["MC_PITCHRATE_P"] > 0
+
+
+def test_a_gain_the_engine_ends_on_a_bound_is_written_inside_the_range(monkeypatch, tmp_path):
+    """The engine holds the documented ranges in its scaled variables, so a gain on a bound can come back a few
+    ulp past it (ATC_ANG_RLL_P = 12.000000000000002 on the ArduCopter 3.4 log); the tuned set is the bound itself,
+    which the parameter file accepts."""
+    ap = autopilots.ardupilot
+    p = ap.TABLE.defaults()
+    Gp = T.axis_plant(G_PITCH, 0.028, 1 / 400)
+    names = list(T.tuned_names(ap, "roll").values())
+    over = np.array([np.nextafter(ap.TABLE[n].max, np.inf) if n == "ATC_ANG_RLL_P" else p[n] for n in names])
+    assert over[names.index("ATC_ANG_RLL_P")] > 12.0
+    monkeypatch.setattr(T, "run_starts", lambda *a, **k: [(over, (0.0, 1.0))])
+    r = T.tune_axis(ap, p, "roll", Gp, [T.margins_goal(0.3)])
+    assert r.gains["ATC_ANG_RLL_P"] == 12.0
+    out = autopilots.write_params("ardupilot", tmp_path / "t.parm", r.gains, "test")
+    assert autopilots.read_params(out)["ATC_ANG_RLL_P"] == 12.0

@@ -341,7 +341,9 @@ def tune_axis(autopilot, params: Mapping[str, float], axis: str, Gp, goals, *, s
             best, best_key = r, key
     if best is None:
         raise ValueError(f"{ap.NAME} {axis}: no start stabilises the loop; start from parameters that do")
-    gains = dict(zip(blk.roles.values(), map(float, best[0])))
+    # the engine holds the bounds in its scaled variables: a gain on a bound comes back a few ulp past it
+    # (ATC_ANG_RLL_P 12.000000000000002), which the parameter file's range check refuses
+    gains = dict(zip(blk.roles.values(), map(float, np.clip(best[0], lower, upper))))
     rep = evaluate_axis(ap, apply_gains(ap, params, axis, gains), axis, Gp, goals)
     return AxisTuneResult(axis, gains, rep, G.objective(rep), per_start, time.perf_counter() - t0)
 
