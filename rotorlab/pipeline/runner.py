@@ -235,11 +235,12 @@ def _open_run_folder(out: Path, vehicle: str, seed: int | None = None, level: st
     return man
 
 
-def _cached_hash(final: Path, h: str, committed: dict | None, log=print) -> str | None:
-    """The output hash of the committed stage folder ``final`` if it was built from inputs hashing to ``h`` and
-    its files are still the ones committed: their hash must equal the ``output_hash`` recorded in stage.json at
-    the commit and in the manifest (``committed``, its entry for the stage, when it has one). A stage whose files
-    were edited, truncated or half-overwritten is reported and recomputed, never reused (None)."""
+def _cached_stage(final: Path, h: str, committed: dict | None, log=print) -> tuple[str, dict] | None:
+    """The output hash and stage.json record of the committed stage folder ``final`` if it was built from inputs
+    hashing to ``h`` and its files are still the ones committed: their hash must equal the ``output_hash``
+    recorded in stage.json at the commit and in the manifest (``committed``, its entry for the stage, when it
+    has one). A stage whose files were edited, truncated or half-overwritten is reported and recomputed, never
+    reused (None)."""
     done = final / "stage.json"
     if not done.exists():
         return None
@@ -256,7 +257,7 @@ def _cached_hash(final: Path, h: str, committed: dict | None, log=print) -> str 
     if recorded != {got}:
         log(f"  {final}: files differ from those committed (output hash mismatch): recomputing the stage")
         return None
-    return got
+    return got, doc
 
 
 def run_pipeline(opts: PipelineOptions, *, stages=STAGES, log=print) -> dict:
@@ -363,13 +364,14 @@ def _run_locked(opts: PipelineOptions, s: dict, out: Path, stages, log, *, regis
             ups = {u: out_hashes.get(u) or (dir_hash(stage_dir(out, u)) if stage_dir(out, u).exists() else None)
                    for u in registry[stage].upstream}
             h = stage_hash(stage, opts, s, fp, ups, registry=registry)
-            cached = _cached_hash(final, h, man["stages"].get(stage), log)
-            if cached is not None:
+            found = _cached_stage(final, h, man["stages"].get(stage), log)
+            if found is not None:
+                cached, record = found
                 out_hashes[stage] = cached
                 entry = man["stages"].get(stage)
                 if not (isinstance(entry, dict) and entry.get("hash") == h and entry.get("output_hash") == cached):
                     # committed, but the run was killed before the manifest recorded it
-                    seconds = read_json(final / "stage.json", "stage record", note=False).get("seconds", 0.0)
+                    seconds = record.get("seconds", 0.0)
                     man["stages"][stage] = {"hash": h, "output_hash": cached, "seconds": round(float(seconds), 3)}
                     atomic.write_json(out / "manifest.json", man)
                 log(f"[{i}/{len(order)}] {stage:<12} cached ({final})")
