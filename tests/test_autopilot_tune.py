@@ -430,3 +430,25 @@ def test_a_gain_the_engine_ends_on_a_bound_is_written_inside_the_range(monkeypat
     assert r.gains["ATC_ANG_RLL_P"] == 12.0
     out = autopilots.write_params("ardupilot", tmp_path / "t.parm", r.gains, "test")
     assert autopilots.read_params(out)["ATC_ANG_RLL_P"] == 12.0
+
+
+def test_the_baselines_are_the_flown_set_the_defaults_and_autotune_flying_the_flown_set():
+    """The sets the CLI and the log pipeline compare with (one helper): the flown parameters under their name,
+    the defaults, and PX4 autotune's saved set computed flying the flown parameters with the autotune settings
+    they carry (MC_AT_RISE_TIME: a slower rise time gives a softer set), range-checked as PX4 documents them."""
+    from rotorlab.errors import ConfigError
+
+    p = autopilots.px4.TABLE.defaults() | {"MC_PITCHRATE_P": 0.12}
+    Gp = T.axis_plant(G_PITCH, 0.028, 1 / 250)
+    sets, rejected = T.baseline_sets("px4", {"pitch": Gp}, p, "log",
+                                     T.px4_autotune_settings({"MC_AT_RISE_TIME": 0.3, "MC_ROLL_P": 6.5}))
+    assert list(sets) == ["log", "defaults", "px4-autotune"] and sets["log"] == p and not rejected
+    slow, _ = T.px4_autotune_params({"pitch": Gp}, p, rise_time_s=0.3)
+    quick, _ = T.px4_autotune_params({"pitch": Gp}, p)
+    assert sets["px4-autotune"] == {**p, **slow}
+    assert slow["MC_PITCHRATE_P"] < quick["MC_PITCHRATE_P"]
+    assert list(T.baseline_sets("ardupilot", {}, autopilots.ardupilot.TABLE.defaults())[0]) == ["defaults"]
+    with pytest.raises(ConfigError, match=r"MC_AT_RISE_TIME.*0.01 <= MC_AT_RISE_TIME <= 0.5"):
+        T.px4_autotune_settings({"MC_AT_RISE_TIME": 0.9}, "flight.ulg")
+    tuned = T.tuned_parameters("px4", {"pitch": {"MC_PITCHRATE_P": 0.2}}, {"IMU_GYRO_CUTOFF": 80.0})
+    assert tuned == {"IMU_GYRO_CUTOFF": 80.0, "MC_PITCHRATE_P": 0.2, "MC_PITCHRATE_K": 1.0}

@@ -34,7 +34,7 @@ import numpy as np
 
 from rotorlab import lti
 from rotorlab.autopilots import get as get_autopilot
-from rotorlab.errors import DataError
+from rotorlab.errors import ConfigError, DataError
 from rotorlab.tune import cascade as cas
 from rotorlab.tune import goals as G
 from rotorlab.tune.blocks import Block, Param, Structure
@@ -44,7 +44,8 @@ from rotorlab.tune.margins import crossover_frequencies, margins
 __all__ = ["AXES", "tuned_names", "axis_plant", "AutopilotAxisBlock", "margins_goal", "analyse_axis",
            "AxisAnalysis", "tune_axis", "tune_autopilot", "AxisTuneResult", "evaluate_axis", "parallel_gains",
            "apply_gains", "px4_autotune_params", "disturbance_response", "FILTER_FACTORS", "filter_candidates",
-           "tune_filters", "FilterSearch"]
+           "tune_filters", "FilterSearch", "px4_autotune_settings", "baseline_sets", "tuned_parameters",
+           "parameter_file_header"]
 
 AXES = ("roll", "pitch", "yaw")
 
@@ -521,3 +522,95 @@ def _rate_sp_loop(autopilot, params, axis, Gp):
     D[:, 0] = 0.0
     D[2 + 2, 0] = 1.0  # measurements [theta_ref, theta_meas, q_ref, q_meas] follow the two outputs
     return closed_loop(ct.ss(P.A, B, P.C, D, P.dt), cas.N_MEAS, cas.N_CON, blk.ss())
+
+
+#: PX4 autotune's settings a parameter set may carry: name, px4_autotune_params keyword, documented range
+#: (mc_autotune_attitude_control_params.c)
+PX4_AUTOTUNE_SETTINGS = (("MC_AT_RISE_TIME", "rise_time_s", 0.01, 0.5), ("MC_AT_SYSID_AMP", "amplitude", 0.1, 6.0))
+
+
+def px4_autotune_settings(raw: Mapping[str, float], source=None) -> dict[str, float]:
+    """The keywords of :func:`px4_autotune_params` that the flown parameters ``raw`` carry (MC_AT_RISE_TIME,
+    MC_AT_SYSID_AMP), range-checked as PX4 documents them; absent ones keep the module's defaults.
+
+    Raises
+    ------
+    rotorlab.errors.ConfigError
+        A value outside PX4's range, naming ``source`` (the file or log), the parameter and the range.
+
+    Examples
+    --------
+    >>> px4_autotune_settings({"MC_AT_RISE_TIME": 0.2, "MC_ROLL_P": 6.5})
+    {'rise_time_s': 0.2}
+    """
+    out = {}
+    for name, key, lo, hi in PX4_AUTOTUNE_SETTINGS:
+        if name in raw:
+            v = float(raw[name])
+            if not lo <= v <= hi:
+                raise ConfigError("value outside PX4's documented range", file=source, field=name,
+                                  expected=f"{lo:g} <= {name} <= {hi:g} (mc_autotune_attitude_control_params.c)",
+                                  got=v)
+            out[key] = v
+    return out
+
+
+def baseline_sets(autopilot, plants: Mapping[str, ct.StateSpace], current: Mapping[str, float],
+                  flown_name: str | None = None, autotune: Mapping[str, float] | None = None
+                  ) -> tuple[dict[str, dict], dict[str, str]]:
+    """The parameter sets a user has today, to compare a tuned set with: ``current`` under ``flown_name`` where
+    it was flown (a log's or a file's parameters; None: ``current`` is the defaults), the autopilot's defaults
+    and, for PX4, the set its autotune module saves flying ``current`` on ``plants`` (:func:`px4_autotune_params`
+    with the ``autotune`` keywords of :func:`px4_autotune_settings`). Returns the sets in that order and, per
+    axis, why PX4's autotune would not save its gains (then that baseline is ``current``: PX4 saves all axes or
+    none).
+
+    Examples
+    --------
+    >>> from rotorlab.autopilots import ardupilot
+    >>> sets, rejected = baseline_sets("ardupilot", {}, ardupilot.TABLE.defaults())
+    >>> list(sets), rejected
+    (['defaults'], {})
+    """
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    sets = {flown_name: dict(current)} if flown_name else {}
+    sets["defaults"] = ap.TABLE.defaults()
+    rejected: dict[str, str] = {}
+    if ap.NAME == "px4":
+        gains, rejected = px4_autotune_params(plants, current, **dict(autotune or {}))
+        sets["px4-autotune"] = {**current, **gains}
+    return sets, rejected
+
+
+def tuned_parameters(autopilot, gains: Mapping[str, Mapping[str, float]],
+                     filters: Mapping[str, float] | None = None) -> dict[str, float]:
+    """The parameters to write for tuned ``gains`` (axis -> name -> value) and chosen ``filters``: the gains as
+    tuned, PX4's ``MC_*RATE_K = 1`` for each tuned axis (the parallel form the gains are tuned in, :func:`apply_gains`).
+
+    Examples
+    --------
+    >>> tuned_parameters("px4", {"roll": {"MC_ROLLRATE_P": 0.2}})
+    {'MC_ROLLRATE_P': 0.2, 'MC_ROLLRATE_K': 1.0}
+    """
+    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
+    out = dict(filters or {})
+    for axis, g in gains.items():
+        out.update(g)
+        if ap.NAME == "px4":
+            out[ap.axis_names(axis)["K"]] = 1.0
+    return out
+
+
+def parameter_file_header(lines, failed) -> str:
+    """A tuned parameter file's header: ``lines`` (what was tuned against which goals), led where ``failed``
+    (labels of hard goals not met) is not empty by the failure and "do not fly these parameters".
+
+    Examples
+    --------
+    >>> print(parameter_file_header(["roll tuned"], ["roll margins"]))
+    FAILED: hard goals not met: roll margins
+    do not fly these parameters
+    roll tuned
+    """
+    head = [f"FAILED: hard goals not met: {'; '.join(failed)}", "do not fly these parameters"] if failed else []
+    return "\n".join([*head, *lines])

@@ -51,28 +51,12 @@ def _models(args):
     return out
 
 
-def _autotune_settings(raw, path):
-    """PX4's autotune settings the flown parameters carry (MC_AT_RISE_TIME, MC_AT_SYSID_AMP), range-checked as
-    mc_autotune_attitude_control_params.c documents them; absent ones keep the module's defaults."""
-    out = {}
-    for name, key, lo, hi in (("MC_AT_RISE_TIME", "rise_time_s", 0.01, 0.5), ("MC_AT_SYSID_AMP", "amplitude", 0.1, 6.0)):
-        if name in raw:
-            v = float(raw[name])
-            if not lo <= v <= hi:
-                raise ConfigError("value outside PX4's documented range", file=path, field=name,
-                                  expected=f"{lo:g} <= {name} <= {hi:g} (mc_autotune_attitude_control_params.c)",
-                                  got=v)
-            out[key] = v
-    return out
-
-
 def _filter_key(ap, params) -> tuple:
     return tuple(float(params[n]) for group in ap.FILTER_GROUPS for n in group)
 
 
 def run_autopilot(args) -> int:
     from rotorlab import atomic, autopilots
-    from rotorlab.autopilots import px4
     from rotorlab.tune import autopilot as T
     from rotorlab.tune.autopilot_spec import ALL_BASELINES, generic_spec
     from rotorlab.tune.goals import format_report
@@ -98,16 +82,8 @@ def run_autopilot(args) -> int:
         dt = 1.0 / loop_hz
         models = _models(args)
         plants = {a: T.axis_plant(G, d, dt) for a, (G, d, _) in models.items()}
-        defaults = ap.TABLE.defaults()
-        baselines = {}
-        if args.params:
-            baselines["file"] = current
-        baselines["defaults"] = defaults
-        rejected = {}
-        if ap.NAME == "px4":
-            # PX4 autotune identifies the loops flying today's gains; when it refuses, all of them stay
-            gains, rejected = T.px4_autotune_params(plants, current, **_autotune_settings(raw, args.params))
-            baselines["px4-autotune"] = {**current, **gains}
+        baselines, rejected = T.baseline_sets(ap, plants, current, "file" if args.params else None,
+                                              T.px4_autotune_settings(raw, args.params))
         if args.match and args.match not in baselines and args.match != ALL_BASELINES:
             raise ConfigError("no such baseline", field="--match", expected=" or ".join([*baselines, ALL_BASELINES]),
                               got=args.match)
@@ -150,11 +126,7 @@ def run_autopilot(args) -> int:
             atomic.write_text(args.spec_out, spec_text)
     except (RotorlabError, ValueError) as exc:
         raise CLIError(str(exc)) from None
-    tuned = dict(filters)
-    for axis, r in res.items():
-        tuned.update(r.gains)
-        if ap.NAME == "px4":
-            tuned[px4.axis_names(axis)["K"]] = 1.0
+    tuned = T.tuned_parameters(ap, {a: r.gains for a, r in res.items()}, filters)
     failed = [(a, x) for a, r in res.items() for x in r.report if x.hard and not x.passed]
     lines = [f"rotorlab tune --autopilot {ap.NAME}: {', '.join(res)} at {loop_hz:g} Hz on "
              + ", ".join(f"{a}={models[a][2]} (delay {models[a][1]:.4g} s)" for a in res),
@@ -171,11 +143,9 @@ def run_autopilot(args) -> int:
     refusal = "; ".join(dict.fromkeys(rejected.values()))
     if refusal:
         lines.append(f"px4-autotune baseline: {refusal}")
-    header = "\n".join(lines)
+    header = T.parameter_file_header(lines, [f"{a} {x.goal}" for a, x in failed])
     if failed:
         out = out.with_name(out.stem + ".failed" + out.suffix)
-        header = ("FAILED: hard goals not met: " + "; ".join(f"{a} {x.goal}" for a, x in failed)
-                  + "\ndo not fly these parameters\n" + header)
     try:
         autopilots.write_params(ap.NAME, out, tuned, header=header)
     except RotorlabError as exc:

@@ -12,6 +12,7 @@ from rotorlab.ident.flightlogs.plant_structures import file_plant
 from rotorlab.ident.flightlogs.run import controller_params, identify_flight_log
 from rotorlab.ident.modelio import load_model
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
+from rotorlab.tune.autopilot import px4_autotune_settings
 from rotorlab.vehicles import load_vehicle
 
 __all__ = ["STAGE", "plant_of", "usable_plant", "MIN_PLANT_VAF_PCT", "ANGLE_CONSISTENCY_POINTS", "MAX_GAIN_SPREAD",
@@ -119,6 +120,8 @@ def run(ctx: StageContext) -> dict:
     # the log's parameters completed by the autopilot's defaults (a log of another autopilot: its defaults alone)
     given = {k: float(v) for k, v in params.items() if k in ap.TABLE} if autopilot == log.autopilot else {}
     current = ap.TABLE.complete(given, fill_defaults=True, source=str(opts.log))
+    # PX4 autotune's own settings in the log (MC_AT_RISE_TIME, ...): the tune stage's autotune baseline flies them
+    autotune = px4_autotune_settings(params, str(opts.log)) if autopilot == log.autopilot == "px4" else {}
     axes, notes = {}, []
     for axis, models in res.models.items():
         axes[axis] = {kind: {"vaf_holdout_pct": m.vaf_holdout, "method": m.model.method, "dt_s": m.dt,
@@ -133,7 +136,7 @@ def run(ctx: StageContext) -> dict:
     return jsonable({"log": str(log.path), "format": log.format, "log_autopilot": log.autopilot,
                      "version": log.version, "autopilot": autopilot, "loop_hz": ap.loop_hz(current),
                      "airborne_s": log.airborne_time_s(), "airborne_source": log.airborne_source,
-                     "axes": axes, "log_params": current,
+                     "axes": axes, "log_params": current, "autotune_settings": autotune,
                      "log_params_defaulted": sorted(k for k in current if k not in given),
                      "mapped": [m.text() for m in mapped], "notes": list(log.notes) + list(res.notes) + notes})
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import tomllib
 
 from rotorlab import autopilots
-from rotorlab.autopilots import px4
 from rotorlab.pipeline.runfolder import Stage, StageContext, jsonable
 from rotorlab.pipeline.stages.log_identify import plant_of
 from rotorlab.tune import autopilot as T
@@ -61,23 +60,15 @@ def run(ctx: StageContext) -> dict:
                          dt_s)
     if not plants:
         return {"skipped": "no axis has a plant model to tune on", "autopilot": ap.NAME}
-    baselines = {"log": current, "defaults": ap.TABLE.defaults()}
-    rejected = {}
-    if ap.NAME == "px4":
-        # PX4 autotune identifies the loops flying the log's gains; when it refuses, all of them stay
-        gains, rejected = T.px4_autotune_params({a: p[0] for a, p in plants.items()}, current)
-        baselines["px4-autotune"] = {**current, **gains}
+    baselines, rejected = T.baseline_sets(ap, {a: p[0] for a, p in plants.items()}, current, "log",
+                                          ident.get("autotune_settings"))
     spec_text = generic_spec(ap, plants, dt_s, current, baselines, model=f"the flight log {ident['log']}")
     (ctx.work / "spec.toml").write_text(spec_text, encoding="utf-8")
     s = ctx.settings
     tasks = [{"spec": spec_text, "params": current, "axis": a, "plant": p[0], "starts": s["tune_starts"],
               "seed": ctx.seed, "max_iter": s["tune_max_iter"]} for a, p in plants.items()]
     results = {r["axis"]: r for r in ctx.executor.map(tune_task, tasks, desc="tuning", progress=ctx.opts.progress)}
-    tuned = {}
-    for axis, r in results.items():
-        tuned.update(r["gains"])
-        if ap.NAME == "px4":
-            tuned[px4.axis_names(axis)["K"]] = 1.0
+    tuned = T.tuned_parameters(ap, {a: r["gains"] for a, r in results.items()})
     failed = [f"{a} {g['goal']}" for a, r in results.items() for g in r["goals"] if g["hard"] and not g["passed"]]
     header = [f"rotorlab pipeline --log {ident['log']}: {', '.join(results)} tuned at {1 / dt_s:g} Hz on the "
               "identified plants (generic multirotor spec: crossover band, disk margin floor, gyro-noise bound hard; "
@@ -87,9 +78,7 @@ def run(ctx: StageContext) -> dict:
                                            for g in r["goals"]))
     suffix = ".params" if ap.FILE_FORMAT == "qgc" else ".parm"
     name = "tuned" + (".failed" if failed else "") + suffix
-    if failed:
-        header = [f"FAILED: hard goals not met: {'; '.join(failed)}", "do not fly these parameters", *header]
-    autopilots.write_params(ap.NAME, ctx.work / name, tuned, header="\n".join(header))
+    autopilots.write_params(ap.NAME, ctx.work / name, tuned, header=T.parameter_file_header(header, failed))
     sets = {"log": current, "tuned": {**current, **tuned}, **{k: v for k, v in baselines.items() if k != "log"}}
     analysis = {name_: {a: _analysis(ap, p, a, plants[a][0]) for a in plants} for name_, p in sets.items()}
     return jsonable({"autopilot": ap.NAME, "loop_hz": 1 / dt_s, "axes": list(results), "tuned": tuned,
