@@ -64,9 +64,8 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "pi-moesp", orders=range(
     if method not in SUBSPACE_METHODS:
         raise DataError(f"method must be one of {', '.join(SUBSPACE_METHODS)}; got {method!r}")
     fit = METHODS[method].fit
-    grid = list(product(list(orders), list(horizons)))
-    if progress:
-        grid = tqdm(grid, desc=f"select_order {method}")
+    pairs = list(product(list(orders), list(horizons)))
+    grid = tqdm(pairs, desc=f"select_order {method}") if progress else pairs
     table, best, best_vaf = [], None, -np.inf
     for n, h in grid:
         try:
@@ -83,6 +82,10 @@ def select_order(u_id, y_id, u_cv, y_cv, method: str = "pi-moesp", orders=range(
         if ok and np.mean(v) > best_vaf:
             best, best_vaf = m, float(np.mean(v))
     if best is None:
-        raise DataError("select_order: no order/horizon in the grid is valid for these data"
-                        + (" and accepted by `accept`" if accept is not None else ""))
+        tried = ", ".join(f"order {r['settings'].get('order')}" + ("" if r["accepted"] else " (refused by accept)")
+                          for r in table) or "none fitted"
+        raise DataError(f"select_order: no {method} model of the grid (orders {sorted({n for n, _ in pairs})}, horizons "
+                        f"{list(dict.fromkeys(h for _, h in pairs))}) is valid for these data"
+                        + (f" and accepted by {getattr(accept, '__name__', 'accept')}" if accept is not None else "")
+                        + f": {tried}; widen the grid (more orders)")
     return best, table

@@ -62,6 +62,22 @@ def test_select_order_finds_true_order():
     assert abs(vafs[3] - vafs[2]) < 0.5  # more states add nothing
 
 
+def test_select_order_refusing_every_candidate_names_the_grid_and_why():
+    """Every candidate refused (here: none with a ZOH continuous equivalent is wanted, so all are refused): the
+    error names the method, the grid and each candidate's fate, not only that nothing was found."""
+    G = c2d_zoh(TESTBED, DT)
+    u = prbs(1000, DT, hold_range_s=(0.05, 0.8), amplitude=7.0, seed=2)
+    y = IdentifiedModel(G, delay=3).simulate(u)[:, 0]
+
+    def never(m):
+        return False
+
+    with pytest.raises(DataError, match=r"no pbsid model of the grid \(orders \[1, 2\], horizons \[\(20, 10\)\]\)"
+                                        r".*accepted by never: order 1 \(refused by accept\), order 2 \(refused"):
+        select_order(u[:700], y[:700], u[700:], y[700:], method="pbsid", orders=iter([1, 2]), horizons=[(20, 10)],
+                     delay=3, dt=DT, accept=never)
+
+
 def test_nugap_published_p2a2_models():
     # paper: 0.0741 from the unrounded models; the rounded published coefficients give 0.0735
     assert nugap(TESTBED, FLIGHT) == pytest.approx(0.0735, abs=5e-4)
