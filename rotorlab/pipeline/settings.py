@@ -36,7 +36,7 @@ _LEVELS = {
                   pbsid_orders=[2, 5], pbsid_horizons=[[11, 7], [20, 10]], lms_orders=[2, 4], lms_taps=50, n_boot=50,
                   n_mc=100, tune_starts=8, validation_s={"hover": 24.0}, record_runs=4, hinf_restarts=1,
                   oe_restarts=0, greybox_periods=11, greybox_restarts=0),
-    "tiny": dict(id_s=24.0, cv_s=10.0, val_s=8.0, flight_s=20.0, moesp_orders=[4], moesp_horizons=[20],
+    "tiny": dict(id_s=24.0, cv_s=10.0, val_s=8.0, flight_s=20.0, moesp_orders=[2, 4], moesp_horizons=[20],
                  pbsid_orders=[2], pbsid_horizons=[[11, 7]], lms_orders=[2], lms_taps=40, n_boot=8, n_mc=20,
                  tune_starts=1, validation_s={"setpoint": 7.0, "gust": 5.0, "rope-pull": 6.0, "hover": 8.0},
                  record_runs=1, hinf_restarts=0, oe_restarts=0, greybox_periods=3, greybox_restarts=0),
