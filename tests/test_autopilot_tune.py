@@ -208,6 +208,23 @@ def test_autopilot_spec_errors_name_file_and_field(tmp_path):
     bad.write_text('[autopilot]\nname = "inav"\ndt = 0.004\n[[goal]]\naxis = "roll"\ntype = "margins"\n')
     with pytest.raises(ConfigError, match="autopilot.name"):
         load_spec(bad)
+    bad.write_text('[autopilot]\nname = "px4"\ndt = 0.004\n[[goal]]\naxis = "roll"\ntype = "margins"\nname = " "\n')
+    with pytest.raises(ConfigError, match=r"goal\[0\].name.*1 to 80 characters"):
+        load_spec(bad)
+
+
+def test_the_generic_specs_two_disturbance_goals_carry_two_names():
+    """The disturbance peak and its frequency-weighted low-frequency bound act on one channel (d_u -> theta):
+    their names tell them apart in every report (a report keyed by label kept one of them)."""
+    dt = 1 / 250
+    p = autopilots.px4.TABLE.defaults()
+    Gp = T.axis_plant(G_PITCH, 0.028, dt)
+    spec = parse_spec(tomllib.loads(generic_spec("px4", {"pitch": (Gp, G_PITCH, 0.028)}, dt, p, {"defaults": p})))
+    labels = [g.label for g in spec.goals["pitch"]]
+    assert len(set(labels)) == len(labels)
+    assert {"disturbance peak d_u->theta", "disturbance low-frequency d_u->theta"} <= set(labels)
+    rep = T.evaluate_axis("px4", p, "pitch", Gp, spec.goals["pitch"])
+    assert [r.goal for r in rep] == labels
 
 
 def test_cli_reads_the_flown_parameters_as_filters_start_and_baseline(px4_400hz, tmp_path, capsys):

@@ -267,11 +267,11 @@ def generic_spec(autopilot, plants: Mapping[str, tuple], dt_s: float, params: Ma
             "[[goal]]", f'axis = "{axis}"', 'type = "effort"', 'from = "n_q"', 'to = "u_ctrl"',
             f"max_gain = {_fmt(noise * 1.0001)}", "hard = true", "",
             "# Input disturbance, minimised: the peak |theta/d_u| (rad per unit torque) over the best baseline's ...",
-            "[[goal]]", f'axis = "{axis}"', 'type = "rejection"', 'from = "d_u"', 'to = "theta"',
-            f"weight = {_fmt(peak)}", "",
+            "[[goal]]", f'axis = "{axis}"', 'type = "rejection"', 'name = "disturbance peak d_u->theta"',
+            'from = "d_u"', 'to = "theta"', f"weight = {_fmt(peak)}", "",
             "# ... and |theta/d_u| weighted by (s + wc_min)/s over the best baseline's (low frequencies: the IAE).",
-            "[[goal]]", f'axis = "{axis}"', 'type = "rejection"', 'from = "d_u"', 'to = "theta"',
-            f'weight = {{ kind = "highpass", order = 1, gain_db = {_fmt(20 * math.log10(lf_best))}, '
+            "[[goal]]", f'axis = "{axis}"', 'type = "rejection"', 'name = "disturbance low-frequency d_u->theta"',
+            'from = "d_u"', 'to = "theta"', f'weight = {{ kind = "highpass", order = 1, gain_db = {_fmt(20 * math.log10(lf_best))}, '
             f"corner_rad_s = {_fmt(lo)} }}", "",
         ]
     return "\n".join(lines)

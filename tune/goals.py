@@ -97,10 +97,18 @@ class Goal:
     @staticmethod
     def from_toml(g: Table) -> Goal:
         """One ``[[goal]]`` table (a strict :class:`rotorlab.config.Table`): the reader registered for its ``type``
-        in :data:`GOAL_TYPES` reads the keys that type accepts, the only ones it accepts."""
+        in :data:`GOAL_TYPES` reads the keys that type accepts, the only ones it accepts. An optional ``name``
+        replaces the label built from the type and signals (reports key results by label: two goals on one
+        channel, e.g. a peak and a frequency-weighted bound, need names to be told apart)."""
         typ = g.str("type", choices=tuple(GOAL_TYPES))
         kw = {"hard": g.bool("hard")} if "hard" in g else {}
-        return GOAL_TYPES[typ][1](g, kw)
+        name = g.str("name") if "name" in g else None
+        if name is not None and not 0 < len(name.strip()) <= 80:
+            raise g.error("name", expected="a goal name of 1 to 80 characters", got=name)
+        goal = GOAL_TYPES[typ][1](g, kw)
+        if name is not None:
+            goal.label = name.strip()
+        return goal
 
     def channels(self, Gp, dt) -> list[Channel]:
         raise NotImplementedError

@@ -19,7 +19,8 @@ Goal types (the registry :data:`rotorlab.tune.goals.GOAL_TYPES` that :meth:`~rot
 dispatches on): ``crossover`` (loop, band_rad_s), ``tracking`` (from, to, response_time_s, max_error_pct,
 peak_error), ``rejection`` / ``gain`` (from, to, weight), ``sensitivity`` (point, weight), ``effort``
 (from, to, max_gain), ``margins`` (point, gm_db, pm_deg), ``poles`` (min_damping, min_decay). Each goal takes an
-optional ``hard = true/false``. A weight is a maximum-gain profile: a number, or
+optional ``hard = true/false`` and an optional ``name``, the label reports give it (default: built from its type
+and signals). A weight is a maximum-gain profile: a number, or
 ``{kind = "highpass", order, gain_db, corner_rad_s}``.
 
 Units: ``[cascade] input_unit`` and ``output_unit`` state the plant units the spec (and the cascade's gains)
