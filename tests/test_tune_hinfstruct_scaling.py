@@ -269,14 +269,13 @@ def test_gain_scale_sweep_is_the_same_in_any_units(ac15, monkeypatch):
     # the sweep (forced on AC15, whose optimum lies within the random starts' sizes, and thinned to keep the test
     # short) draws its directions and sizes in the plant-derived variables: in other units its starts reach the
     # same gammas
-    monkeypatch.setattr(hs, "SWEEP_DIRECTIONS", 60)
-    monkeypatch.setattr(hs, "SWEEP_STARTS", 2)
+    for name, value in (("SWEEP_DIRECTIONS", 60), ("SWEEP_STARTS", 2), ("SWEEP_REFINE", 1), ("SWEEP_STEP", 0.1)):
+        monkeypatch.setattr(hs, name, value)
     P, ny, nu, _ = ac15
     r0 = hinfstruct(P, "static", ny, nu, starts=1, hops=0, sweep=True)
     assert len(r0.sweep) == 2 and np.all(np.isfinite(r0.sweep))
     assert r0.gamma == min(r0.starts + r0.sweep)
-    for a, c in ((1e3, 1.0), (1.0, 1e-2)):
-        Ps = _rescale(P, ny, nu, np.full(nu, a), np.full(ny, c))
-        r = hinfstruct(Ps, "static", ny, nu, starts=1, hops=0, sweep=True)
-        np.testing.assert_allclose(r.sweep, r0.sweep, rtol=5e-3)
-        assert lti.hinfnorm(closed_loop(Ps, ny, nu, r.controller))[0] == pytest.approx(r.gamma, rel=1e-9)
+    Ps = _rescale(P, ny, nu, np.full(nu, 1e3), np.full(ny, 1e-2))
+    r = hinfstruct(Ps, "static", ny, nu, starts=1, hops=0, sweep=True)
+    np.testing.assert_allclose(r.sweep, r0.sweep, rtol=5e-3)
+    assert lti.hinfnorm(closed_loop(Ps, ny, nu, r.controller))[0] == pytest.approx(r.gamma, rel=1e-9)
