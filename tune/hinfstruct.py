@@ -1595,11 +1595,12 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int | None = Non
     """Minimise ``||F_l(P, K(theta))||_inf`` over a fixed-structure controller subject to internal stability.
 
     Each start runs the stabilisation phase (spectral abscissa minimised by nonsmooth BFGS) and then the
-    hybrid optimiser (nonsmooth BFGS, tangent-program polishing; see the module docstring); then rounds of
-    basin hopping from the best end point run the same two phases from random points around it. Starts and
-    hops are seeded and drawn in the plant-derived variables, so they are the same in any units of the plant's
-    signals, and they run through ``executor``. Their cost is ``starts`` plus ``hops`` per round (at least
-    two rounds) times that of one start.
+    hybrid optimiser (nonsmooth BFGS, tangent-program polishing; see the module docstring); where the plant calls
+    for it, a gain-scale sweep (``sweep``) adds starts at high loop gains; then rounds of basin hopping from the
+    best end point run the same two phases from random points around it. Starts, sweep and hops are seeded and
+    drawn in the plant-derived variables, so they are the same in any units of the plant's signals, and they run
+    through ``executor``. Their cost is ``starts`` plus ``hops`` per round (at least two rounds) times that of
+    one start, plus the sweep's screening and its :data:`SWEEP_STARTS` starts where it runs.
 
     Parameters
     ----------
