@@ -6,8 +6,8 @@ only in a thin band of gain scale (on flex20s0 the best controller known is unst
 largest singular value), which random starts rarely hit. The sweep: for every gain scale ``|K|_F`` on a log grid,
 the rank-one gains ``s u v'`` on a grid of the two angles of ``u`` and ``v`` (both signs) are evaluated exactly
 (ab13dd), and Nelder-Mead on the sphere ``|K|_F = s`` refines the three best; the hybrid optimiser of
-:func:`rotorlab.tune.hinfstruct.hinfstruct` (one start, no hops, a long iteration budget) then polishes the
-``--polish`` best scales' minimisers. 2x2 static output feedback only (the grid is over the two angles).
+:func:`rotorlab.tune.hinfstruct.hinfstruct` (one start, no hops, not its own gain-scale sweep, a long iteration
+budget) then polishes the ``--polish`` best scales' minimisers. 2x2 static output feedback only (the grid is over the two angles).
 
 Run: ``python benchmarks/flex_reference.py [--problems flex20s0] [--angles 24] [--max-iter 2000]``. The machine may
 be shared: the load average is printed with the times.
@@ -91,7 +91,8 @@ def main():
         for g, s, K in sorted(sweep, key=lambda e: e[0])[: a.polish]:
             if not np.isfinite(g):
                 continue
-            r = hinfstruct(prob.P, StaticGain(2, 2, value=K), 2, 2, starts=1, hops=0, max_iter=a.max_iter)
+            r = hinfstruct(prob.P, StaticGain(2, 2, value=K), 2, 2, starts=1, hops=0, sweep=False,
+                           max_iter=a.max_iter)
             Kp = np.array(list(r.params.values())).reshape(2, 2)
             print(f"{name}: polished from |K|_F = {s:.4g} ({g:.6g}): {r.gamma:.8g}, K = {np.round(Kp, 3).tolist()}, "
                   f"slope {r.slope:.2g}", flush=True)

@@ -347,3 +347,34 @@ def test_flex20s0_reference_gain_is_a_stationary_point_in_a_thin_stable_band():
     for f in (0.5, 2.0):
         Kf = f * sv[0] * np.outer(U[:, 0], Vt[0]) + sv[1] * np.outer(U[:, 1], Vt[1])
         assert gamma(Kf) == np.inf
+
+
+def _hinfstruct_problem(P, ny, nu):
+    """The optimisation problem hinfstruct builds for static output feedback from K = 0."""
+    S = hs._as_structure("static", ny, nu, 0.0)
+    free = np.ones(ny * nu, bool)
+    scale, dec = hs._variable_scale(S, P, ny, nu, S.values, free)
+    return hs._Problem(S, [hs.Channel(P, ny, nu, exact_peak=True)], [(P, ny, nu)], free, scale,
+                       relative_stop=True, start_decades=dec)
+
+
+def test_gain_scale_sweep_reaches_flex20s0s_reference_from_its_thin_band():
+    # flex20s0's best known controller (the pinned reference above: 48,623.219 at an rms size of about 1680 in the
+    # plant-derived variables) lies beyond the random starts' largest size (1000 units); the sweep covers its size,
+    # and there its screening, the sphere minimisation, the search over size and one start of the hybrid optimiser
+    # land on it (the whole sweep, 29 sizes, is what hinfstruct runs by default on this plant)
+    prob_b = _bench_problems().flex20(0)
+    prob = _hinfstruct_problem(prob_b.P, 2, 2)
+    assert prob.start_decades[1] == hs.START_TOP
+    lo_dec, hi_dec = hs._sweep_decades(prob_b.P, 2, 2)
+    assert lo_dec < np.log10(1680.0) < hi_dec
+    lower, upper = np.full(4, -np.inf), np.full(4, np.inf)
+    rng = np.random.default_rng(hs.task_seeds(0, 3)[2])
+    D = hs._sweep_directions(prob, rng, hs.SWEEP_DIRECTIONS)
+    found, _ = hs._sweep_size((prob, 3.25, D, lower, upper, 1e-4))
+    f, lg, x = min(found, key=lambda c: c[0])
+    assert np.sqrt(np.mean(x**2)) == pytest.approx(10**3.25, rel=1e-9)  # a minimum on that size's sphere
+    assert f < 52000.0  # the low-gain local minima that random starts find are 53,074-56,614
+    verify = hs._Verifier(prob_b.P, 2, 2, prob.s)
+    g = verify(hs._sweep_start((prob, lg, x, lower, upper, 500, 1e-4, None, 1)))[0]
+    assert g == pytest.approx(48623.219, rel=1e-3)

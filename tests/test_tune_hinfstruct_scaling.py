@@ -218,3 +218,64 @@ def test_default_options_reach_the_full_order_optimum_where_one_start_splits_off
     # the hops ran, and none of their verified results is below the optimum (hinfsyn's controller comes from a
     # bisection on gamma and is within about 0.02 % of it)
     assert r.hops and min(r.hops) >= bound * (1 - 1e-3)
+
+
+def _hinf_problems():
+    """benchmarks/hinf_problems.py, registered in sys.modules (its dataclass looks its module up there)."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    if "hinf_problems_bench" not in sys.modules:
+        path = Path(__file__).resolve().parents[1] / "benchmarks" / "hinf_problems.py"
+        spec = importlib.util.spec_from_file_location("hinf_problems_bench", path)
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = mod
+        spec.loader.exec_module(mod)
+    return sys.modules["hinf_problems_bench"]
+
+
+def test_sweep_decades_follow_the_plant_not_its_units():
+    hp = _hinf_problems()
+    prob = hp.flex20(0)
+    dec = hs._sweep_decades(prob.P, 2, 2)
+    # flex20s0's normalised P22 crosses 1 up to loop gains of about 10^3.6: beyond the random starts' 10^3
+    assert dec[0] == pytest.approx(hs.START_TOP - hs.SWEEP_BELOW)
+    assert dec[1] > hs.START_TOP + 0.5
+    for a, c in ((1e3, 1.0), (1.0, 1e-3), (1e-2, 10.0)):
+        p2 = hp.rescaled(prob, a, c)
+        assert hs._sweep_decades(p2.P, 2, 2) == pytest.approx(dec, rel=1e-9)
+    # a plant whose plausible loop gains stay within the random starts' sizes gets no sweep by default
+    P = _random_plant(0)
+    assert hs._sweep_decades(P, 3, 2) is None
+    assert hs._sweep_decades(P, 3, 2, force=True) is not None
+
+
+def test_sweep_directions_are_rank_one_on_static_gains():
+    S = Structure([StaticGain(3, 2, name="K"), PID(1.0, 0.5, 0.1, 0.05, name="C")])
+    n = len(S.params)
+    P = _random_plant(0, nu=3, ny=4)
+    prob = hs._Problem(S, [hs.Channel(P, 4, 3)], [(P, 4, 3)], np.ones(n, bool), np.ones(n))
+    D = hs._sweep_directions(prob, np.random.default_rng(0), 300)
+    np.testing.assert_allclose(np.sqrt(np.mean(D**2, axis=1)), 1.0, rtol=1e-12)
+    sv = np.linalg.svd(D[:, :6].reshape(300, 2, 3), compute_uv=False)
+    rank_one = sv[:, 1] < 1e-12 * sv[:, 0]
+    np.testing.assert_array_equal(rank_one, np.arange(300) % 3 != 0)  # two in three; the others Gaussian
+    np.testing.assert_array_equal(D, hs._sweep_directions(prob, np.random.default_rng(0), 300))
+
+
+@pytest.mark.filterwarnings("ignore::FutureWarning")
+def test_gain_scale_sweep_is_the_same_in_any_units(ac15, monkeypatch):
+    # the sweep (forced on AC15, whose optimum lies within the random starts' sizes, and thinned to keep the test
+    # short) draws its directions and sizes in the plant-derived variables: in other units its starts reach the
+    # same gammas
+    for name, value in (("SWEEP_DIRECTIONS", 60), ("SWEEP_STARTS", 2), ("SWEEP_REFINE", 1), ("SWEEP_STEP", 0.1)):
+        monkeypatch.setattr(hs, name, value)
+    P, ny, nu, _ = ac15
+    r0 = hinfstruct(P, "static", ny, nu, starts=1, hops=0, sweep=True)
+    assert len(r0.sweep) == 2 and np.all(np.isfinite(r0.sweep))
+    assert r0.gamma == min(r0.starts + r0.sweep)
+    Ps = _rescale(P, ny, nu, np.full(nu, 1e3), np.full(ny, 1e-2))
+    r = hinfstruct(Ps, "static", ny, nu, starts=1, hops=0, sweep=True)
+    np.testing.assert_allclose(r.sweep, r0.sweep, rtol=5e-3)
+    assert lti.hinfnorm(closed_loop(Ps, ny, nu, r.controller))[0] == pytest.approx(r.gamma, rel=1e-9)

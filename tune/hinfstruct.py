@@ -68,7 +68,11 @@ the band of the plant's modes (at least three decades, up to 1000 units: :func:`
 by phase one, and run through the project's executor. By default :func:`hinfstruct` runs several starts and then
 basin hopping from the best end point (:func:`_hop`): where two runs split at one decision into different local minima,
 the hops take both to the lower one, so the default result is the same in any units beyond the single-path round-off
-(benchmarks/bench_hinf_scaling.py). The cascade tuner calls :func:`run_starts` and does not hop.
+(benchmarks/bench_hinf_scaling.py). Where the plant makes loop gains plausible beyond the random starts' largest size,
+a gain-scale sweep (:func:`_scale_sweep`) runs between the starts and the hops: size by size on a log grid over those
+decades, seeded directions (rank one on static gains) screened by their exact norm and the best minimised on that
+size's sphere, then a few starts from the lowest, for optima that stabilise only in a thin band of gain scale. The
+cascade tuner calls :func:`run_starts` and neither sweeps nor hops.
 
 The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
 goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
@@ -132,6 +136,18 @@ HOP_SIZES = (0.03, 0.1, 0.3, 1.0)
 HOP_PATIENCE = 2
 HOP_GAIN = 1e-3
 HOP_ROUNDS = 6
+# the gain-scale sweep (:func:`_scale_sweep`), run by hinfstruct where the plant makes loop gains plausible beyond
+# the random starts' largest size (10**START_TOP units): sizes on a log grid of step SWEEP_STEP decades from
+# SWEEP_BELOW decades under that cap to SWEEP_ABOVE decades over the plant's top, SWEEP_DIRECTIONS directions screened
+# by their exact norm at every size, the SWEEP_REFINE best of each size minimised on its sphere, and the SWEEP_STARTS
+# best of those started (their size optimised first, then one start of the hybrid optimiser each)
+START_TOP = 3.0
+SWEEP_STEP = 0.05
+SWEEP_BELOW = 0.5
+SWEEP_ABOVE = 0.3
+SWEEP_DIRECTIONS = 2000
+SWEEP_REFINE = 3
+SWEEP_STARTS = 4
 
 
 class NotStabilisableError(ValueError):
@@ -1449,6 +1465,7 @@ class HinfstructResult:
     start_times_s: list = dataclasses.field(default_factory=list)  # wall seconds per start
     start_cpu_s: list = dataclasses.field(default_factory=list)    # CPU seconds per start (its own process)
     hops: list = dataclasses.field(default_factory=list)           # verified gamma of every basin-hopping run
+    sweep: list = dataclasses.field(default_factory=list)          # verified gamma of every gain-scale sweep start
     total_cpu_s: float = np.nan                                    # CPU seconds of all starts and hops together
 
 
@@ -1542,7 +1559,21 @@ def _variable_scale(S: Structure, P, nmeas, ncon, theta0, free):
     scale = np.where(io, np.exp(-(eu @ lgu + ey @ lgy)), np.maximum(th, 0.1 * ref))
     q10, q90 = np.quantile(np.log10(np.maximum(sigma, 1e-300)), [0.1, 0.9])
     lo = float(np.clip(-q90, -1.0, 1.0))
-    return scale[free], (lo, float(np.clip(-q10, lo + 3.0, 3.0)))
+    return scale[free], (lo, float(np.clip(-q10, lo + 3.0, START_TOP)))
+
+
+def _sweep_decades(P, nmeas, ncon, force=False):
+    """log10 range of the gain-scale sweep's rms sizes in the plant-derived variables, or None: where the loop
+    gains at which the normalised ``P22`` has crossed 1 almost everywhere in the band of the plant's modes (the
+    10 % quantile of :func:`_variable_scale`) lie beyond the random starts' largest size (``10**START_TOP`` units),
+    the sweep covers the sizes from :data:`SWEEP_BELOW` decades under that cap to :data:`SWEEP_ABOVE` decades over
+    those gains (``force``: also where they do not, from :data:`SWEEP_BELOW` decades under them). Like the units,
+    it is the same in any units of the plant's signals."""
+    sigma = _plant_units(P, nmeas, ncon)[2]
+    top = -float(np.quantile(np.log10(np.maximum(sigma, 1e-300)), 0.1))
+    if not (top > START_TOP or force):
+        return None
+    return min(top, START_TOP) - SWEEP_BELOW, top + SWEEP_ABOVE
 
 
 def _as_structure(controller, nmeas, ncon, dt) -> Structure:
@@ -1558,17 +1589,18 @@ def _as_structure(controller, nmeas, ncon, dt) -> Structure:
 
 
 def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int | None = None, hops: int | None = None, seed=0,
-               n_jobs: int = 1,
+               sweep: bool | None = None, n_jobs: int = 1,
                executor=None, tol: float = 1e-4, time_limit_s: float | None = None, bounds: dict | None = None,
                max_iter: int = 500, progress: bool = False) -> HinfstructResult:
     """Minimise ``||F_l(P, K(theta))||_inf`` over a fixed-structure controller subject to internal stability.
 
     Each start runs the stabilisation phase (spectral abscissa minimised by nonsmooth BFGS) and then the
-    hybrid optimiser (nonsmooth BFGS, tangent-program polishing; see the module docstring); then rounds of
-    basin hopping from the best end point run the same two phases from random points around it. Starts and
-    hops are seeded and drawn in the plant-derived variables, so they are the same in any units of the plant's
-    signals, and they run through ``executor``. Their cost is ``starts`` plus ``hops`` per round (at least
-    two rounds) times that of one start.
+    hybrid optimiser (nonsmooth BFGS, tangent-program polishing; see the module docstring); where the plant calls
+    for it, a gain-scale sweep (``sweep``) adds starts at high loop gains; then rounds of basin hopping from the
+    best end point run the same two phases from random points around it. Starts, sweep and hops are seeded and
+    drawn in the plant-derived variables, so they are the same in any units of the plant's signals, and they run
+    through ``executor``. Their cost is ``starts`` plus ``hops`` per round (at least two rounds) times that of
+    one start, plus the sweep's screening and its :data:`SWEEP_STARTS` starts where it runs.
 
     Parameters
     ----------
@@ -1589,6 +1621,13 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int | None = Non
         other units, on another CPU) can split at one accept/reject decision into local minima a few percent
         apart; hopping takes both on to the lower one. Default :data:`DEFAULT_HOPS`.
     seed : int or numpy.random.Generator seed
+    sweep : bool, optional
+        Run the gain-scale sweep (:func:`_scale_sweep`) after the starts: at every size on a log grid of loop gains
+        above the random starts' largest, seeded directions screened by their exact norm, the best minimised on
+        that size's sphere, and :data:`SWEEP_STARTS` more starts from the lowest of those (its best end point
+        competes with the starts' before the hops). Default (None): where the plant makes loop gains plausible
+        beyond the random starts' largest size (:func:`_sweep_decades`); True: also elsewhere, over the decade
+        below and above the plant's largest plausible loop gain; False: never.
     n_jobs : int
         Local worker processes for the starts when no ``executor`` is given (blocks must then pickle: no
         lambdas in Custom blocks).
@@ -1679,20 +1718,26 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int | None = Non
     if not np.isfinite(min(gammas)):
         _raise_unstabilised([r for r in results if isinstance(r, StartFailure)], len(results))
     best = verified[int(np.argmin(gammas))]
+    swept, sweep_cpu_s = [], 0.0
+    sweep_range = _sweep_decades(P, nmeas, ncon, force=bool(sweep)) if sweep is not False else None
+    if sweep_range is not None:
+        swept, sweep_cpu_s = _scale_sweep(prob, sweep_range, lower, upper, verify, seed=seed, n_jobs=n_jobs,
+                                          executor=executor, max_iter=max_iter, tol=tol, time_limit_s=time_limit_s)
+        best = min([best] + swept, key=lambda v: v[0])
     hopped = []
     if hops > 0:
         best, hopped = _hop(prob, best, lower, upper, verify, hops=hops, seed=seed, n_jobs=n_jobs,
                             executor=executor, max_iter=max_iter, tol=tol, time_limit_s=time_limit_s)
     g, th, hist, wpk, pred, _ = best
     S.set_values(th)
-    runs = verified + hopped
+    runs = verified + swept + hopped
     return HinfstructResult(gamma=float(g), controller=S.ss(th), params=dict(zip(names, map(float, th))),
                             history=list(map(float, hist)), starts=[float(x) for x in gammas], success=True,
                             structure=S, w_peak=float(wpk), stationarity=float(pred), slope=_slope(prob, th),
                             start_times_s=[float(v[5][0]) for v in verified],
                             start_cpu_s=[float(v[5][1]) for v in verified],
-                            hops=[float(v[0]) for v in hopped],
-                            total_cpu_s=float(np.nansum([v[5][1] for v in runs])))
+                            hops=[float(v[0]) for v in hopped], sweep=[float(v[0]) for v in swept],
+                            total_cpu_s=float(np.nansum([v[5][1] for v in runs])) + sweep_cpu_s)
 
 
 class _Verifier:
@@ -1744,6 +1789,117 @@ def _hop(prob: _Problem, best, lower, upper, verify, *, hops, seed, n_jobs, exec
         if idle >= HOP_PATIENCE:
             break
     return best, hopped
+
+
+def _sweep_directions(prob: _Problem, rng, n):
+    """``n`` random directions (rows) of rms 1 in the free scaled variables. Every third is Gaussian; in the others
+    the free entries of each static-gain block are the rank-one matrix ``u v'`` of two Gaussian vectors (the
+    parameters of other blocks Gaussian): the high-gain optima of static output feedback on lightly damped
+    structures are nearly rank one (one combination of the measurements drives the controls), and such a
+    direction stabilises at high gain where a Gaussian one hardly ever does."""
+    T = rng.standard_normal((n, prob.free.size))
+    rank_one = np.arange(n) % 3 != 0
+    i = 0
+    for b in prob.s.blocks:
+        k = len(b.params)
+        if isinstance(b, StaticGain):
+            u, v = rng.standard_normal((n, b.nu)), rng.standard_normal((n, b.ny))
+            T[rank_one, i:i + k] = np.einsum("ni,nj->nij", u, v).reshape(n, k)[rank_one]
+        i += k
+    D = T[:, prob.free]
+    return D / np.maximum(np.sqrt(np.mean(D * D, axis=1)), 1e-300)[:, None]
+
+
+def _sphere_min(fg, d, radius, tol, max_iter=100):
+    """Nonsmooth BFGS (:func:`_bfgs`) on the sphere ``|x| = radius`` from the direction ``d``, in the variables
+    ``m`` with ``x = radius m / |m|`` (the gradient projected on the sphere's tangent space): the lowest objective at
+    that size near ``d``. Returns ``(value, x)``; ``(inf, radius d / |d|)`` where ``d`` does not stabilise."""
+
+    def on_sphere(m):
+        nm = np.linalg.norm(m)
+        f, g = fg(radius * m / nm)
+        if not np.isfinite(f):
+            return f, None
+        mh = m / nm
+        return f, (radius / nm) * (g - mh * (mh @ g))
+
+    m = np.asarray(d, float) / np.linalg.norm(d)
+    f, g = on_sphere(m)
+    if np.isfinite(f):
+        m, f, _ = _bfgs(on_sphere, m, f, g, max_iter=max_iter, tol=tol, deadline=None, history=[], relative=True)
+    return f, radius * m / np.linalg.norm(m)
+
+
+def _sweep_size(job):
+    """One size of the gain-scale sweep: the directions ``D`` at rms size ``10**lg`` screened by their exact norm
+    (stabilising ones only), the :data:`SWEEP_REFINE` best minimised on that sphere. Returns ``([(value, lg, x),
+    ...], CPU s)``."""
+    prob, lg, D, lower, upper, tol = job
+    c0 = time.process_time()
+    lo, hi = prob.x_of(lower), prob.x_of(upper)
+    vals = np.full(len(D), np.inf)
+    for k, d in enumerate(D):
+        x = 10.0 ** lg * d
+        if np.any(x < lo) or np.any(x > hi):
+            continue
+        th = prob.theta(x)
+        if prob.stable(th):
+            vals[k] = prob.exact_peak(th)[0]
+    fg = _Objective(prob, lo, hi)
+    radius = 10.0 ** lg * np.sqrt(D.shape[1])
+    out = [(*_sphere_min(fg, D[k], radius, tol), lg) for k in np.argsort(vals, kind="stable")[:SWEEP_REFINE]
+           if np.isfinite(vals[k])]
+    return [(f, lg, x) for f, x, lg in out], time.process_time() - c0
+
+
+def _sweep_start(job):
+    """A start from a sphere minimum of the sweep: its size first optimised (bounded Brent search over log10 size
+    within two grid steps, each value the sphere minimum from the same direction: the lowest gamma along the
+    scale at that direction's basin), then one run of :func:`_run_start` from the best point found."""
+    prob, lg, x, lower, upper, max_iter, tol, time_limit_s, seed = job
+    t0, c0 = time.perf_counter(), time.process_time()
+    fg = _Objective(prob, prob.x_of(lower), prob.x_of(upper))
+    found = {}
+
+    def profile(lgs):
+        found[lgs] = _sphere_min(fg, x, 10.0 ** lgs * np.sqrt(x.size), tol)
+        return found[lgs][0] if np.isfinite(found[lgs][0]) else 1e300
+
+    minimize_scalar(profile, bounds=(lg - 2 * SWEEP_STEP, lg + 2 * SWEEP_STEP), method="bounded",
+                    options={"xatol": 0.1 * SWEEP_STEP})
+    f, xs = min(found.values(), key=lambda e: e[0])
+    r = _run_start((prob, prob.theta(xs if np.isfinite(f) else x), lower, upper, max_iter, tol, time_limit_s,
+                    HYBRID_SUB_ITER, True, seed))
+    if isinstance(r, StartFailure):
+        return r
+    return r[:4] + ((time.perf_counter() - t0, time.process_time() - c0),)
+
+
+def _scale_sweep(prob: _Problem, decades, lower, upper, verify, *, seed, n_jobs, executor, max_iter, tol,
+                 time_limit_s):
+    """The gain-scale sweep: starts at the high loop gains that random starts rarely reach.
+
+    Some optima stabilise only in a thin band of gain scale and of direction (a lightly damped structure under
+    non-collocated static feedback: flex20s0's best is unstable at half and twice its size), where a random
+    start of that size hardly ever stabilises and the optimiser from a smaller one ends in a low-gain valley.
+    The sweep looks for them size by size: at every rms size on a log grid over ``decades`` (step
+    :data:`SWEEP_STEP`, in the plant-derived variables) :data:`SWEEP_DIRECTIONS` seeded directions
+    (:func:`_sweep_directions`, the same set at every size, so each direction is also a ray in scale) are screened by
+    their exact norm, and the :data:`SWEEP_REFINE` best stabilising ones are minimised on that size's sphere; the
+    :data:`SWEEP_STARTS` lowest sphere minima over all sizes then run :func:`_sweep_start` (their size optimised,
+    then the hybrid optimiser). Sizes and starts run through ``executor``. Returns every sweep start's verified
+    entry and the CPU seconds of the screening."""
+    rng = np.random.default_rng(task_seeds(seed, 3)[2])
+    D = _sweep_directions(prob, rng, SWEEP_DIRECTIONS)
+    sizes = decades[0] + SWEEP_STEP * np.arange(int(np.floor((decades[1] - decades[0]) / SWEEP_STEP + 1e-9)) + 1)
+    jobs = [(prob, float(lg), D, lower, upper, tol) for lg in sizes]
+    screened = map_tasks(_sweep_size, jobs, executor=executor, n_jobs=n_jobs or 1, desc="scale sweep")
+    cands = sorted((c for found, _ in screened for c in found), key=lambda c: c[0])[:SWEEP_STARTS]
+    seeds = task_seeds(int(rng.integers(1 << 31)), SWEEP_STARTS)
+    jobs = [(prob, lg, x, lower, upper, max_iter, tol, time_limit_s, s) for (_, lg, x), s in zip(cands, seeds)]
+    runs = [verify(r) for r in map_tasks(_sweep_start, jobs, executor=executor, n_jobs=n_jobs or 1,
+                                         desc="sweep starts")]
+    return runs, float(sum(c for _, c in screened))
 
 
 def _slope(prob: _Problem, theta) -> float:
