@@ -65,7 +65,9 @@ class OptionalBuildExt(build_ext):
         if os.environ.get(compiled.PURE_ENV, "") not in ("", "0"):
             self.warn(f"{compiled.PURE_ENV} is set: the per-tick modules install as Python only")
             self.distribution.ext_modules = []
-        elif self.distribution.ext_modules:
+        elif self.distribution.ext_modules and not getattr(self.distribution, "_cythonized", False):
+            # once per build: setuptools may make several build_ext commands of one distribution (editable mode)
+            self.distribution._cythonized = True
             try:
                 from Cython.Build import cythonize
 
