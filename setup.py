@@ -12,6 +12,7 @@ time compiles nothing. The C flags keep the compiled arithmetic the Python arith
 fused multiply-add, whatever ``-march`` a user's ``CFLAGS`` bring), no ``-ffast-math``.
 """
 
+import concurrent.futures
 import hashlib
 import importlib.util
 import os
@@ -75,6 +76,7 @@ class OptionalBuildExt(build_ext):
                 # compiled function takes what the Python one takes; C types come from the .pxd files alone
                 self.distribution.ext_modules = cythonize(
                     self.distribution.ext_modules, build_dir=os.path.join("build", "cython"), quiet=True,
+                    nthreads=os.cpu_count() or 1,
                     compiler_directives={"language_level": 3, "binding": True, "annotation_typing": False})
             except Exception as exc:  # no Cython, or a module it cannot translate: the pure build still installs
                 self.warn(f"Cython could not translate the per-tick modules ({exc!r}); they install as Python only")
@@ -88,10 +90,10 @@ class OptionalBuildExt(build_ext):
                 self._record_source(ext, self.get_ext_fullpath(ext.name))
 
     def build_extensions(self):
-        built = []
-        for ext in self.extensions:
-            if self._build_one(ext):
-                built.append(ext)
+        # one compiler process per core (the compiler runs outside Python: threads suffice)
+        with concurrent.futures.ThreadPoolExecutor(os.cpu_count() or 1) as pool:
+            ok = list(pool.map(self._build_one, self.extensions))
+        built = [ext for ext, done in zip(self.extensions, ok) if done]
         # what setuptools copies into the source tree (an editable install) and lists as outputs: the built ones
         self.extensions = built
 

@@ -57,6 +57,10 @@ def main() -> int:
         return 1
     built = [n for n in names if n.endswith((".so", ".pyd"))]
     print(f"compiled modules in the wheel: {len(built)} of {len(compiled_modules())}")
+    unrecorded = [n for n in built if n + ".source-sha256" not in names]
+    if unrecorded:  # rotorlab.compiled would never import them
+        print("missing from the wheel: the source hash of " + ", ".join(unrecorded))
+        return 1
     return 0
 
 
