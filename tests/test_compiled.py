@@ -64,7 +64,7 @@ def _fly(pure: bool) -> dict:
 
 def test_compiled_and_python_modules_log_the_same_bits():
     pure, installed = _fly(pure=True), _fly(pure=False)
-    assert set(pure["status"].values()) == {"pure: " + compiled.PURE_ENV}
+    assert "compiled" not in pure["status"].values()  # ROTORLAB_PURE_PYTHON, or nothing built
     assert set(installed["status"]) == set(compiled.MODULES)
     for (name, *_), a, b in zip(RUNS, pure["runs"], installed["runs"]):
         assert a["stopped"] is None and b["stopped"] is None, (name, a["stopped"], b["stopped"])
