@@ -63,24 +63,26 @@ class OptionalBuildExt(build_ext):
         # cythonized before setuptools reads the extensions (it records per extension what its later steps use)
         compiled = _compiled_module()
         self._sources = {ext.name: ext.sources[0] for ext in extensions()}  # the .py of each, not its .c
-        if os.environ.get(compiled.PURE_ENV, "") not in ("", "0"):
-            self.warn(f"{compiled.PURE_ENV} is set: the per-tick modules install as Python only")
-            self.distribution.ext_modules = []
-        elif self.distribution.ext_modules and not getattr(self.distribution, "_cythonized", False):
-            # once per build: setuptools may make several build_ext commands of one distribution (editable mode)
+        # once per build: setuptools may make several build_ext commands of one distribution (editable mode)
+        if not getattr(self.distribution, "_cythonized", False):
             self.distribution._cythonized = True
-            try:
-                from Cython.Build import cythonize
-
-                # language_level 3 and no annotation typing: the .py files' annotations are documentation, so a
-                # compiled function takes what the Python one takes; C types come from the .pxd files alone
-                self.distribution.ext_modules = cythonize(
-                    self.distribution.ext_modules, build_dir=os.path.join("build", "cython"), quiet=True,
-                    nthreads=os.cpu_count() or 1,
-                    compiler_directives={"language_level": 3, "binding": True, "annotation_typing": False})
-            except Exception as exc:  # no Cython, or a module it cannot translate: the pure build still installs
-                self.warn(f"Cython could not translate the per-tick modules ({exc!r}); they install as Python only")
+            if os.environ.get(compiled.PURE_ENV, "") not in ("", "0"):
+                self.warn(f"{compiled.PURE_ENV} is set: the per-tick modules install as Python only")
                 self.distribution.ext_modules = []
+            elif self.distribution.ext_modules:
+                try:
+                    from Cython.Build import cythonize
+
+                    # language_level 3 and no annotation typing: the .py files' annotations are documentation, so
+                    # a compiled function takes what the Python one takes; C types come from the .pxd files alone
+                    self.distribution.ext_modules = cythonize(
+                        self.distribution.ext_modules, build_dir=os.path.join("build", "cython"), quiet=True,
+                        nthreads=os.cpu_count() or 1,
+                        compiler_directives={"language_level": 3, "binding": True, "annotation_typing": False})
+                except Exception as exc:  # no Cython, or a module it cannot translate: the pure build installs
+                    self.warn(f"Cython could not translate the per-tick modules ({exc!r}); they install as Python "
+                              "only")
+                    self.distribution.ext_modules = []
         super().finalize_options()
 
     def run(self):
