@@ -5,8 +5,8 @@ Python; ``setup.py`` compiles those same ``.py`` files with Cython when a C comp
 beside a module, where there is one, declares its per-tick locals as C doubles without changing the ``.py``). A
 build without a compiler, or one where compiling fails, installs and runs the ``.py`` files alone. The compiled
 module does the same IEEE double operations in the same order as the Python one, so a run gives the same numbers
-bit for bit on either (``tests/test_compiled.py``); it only costs less time a tick (``benchmarks/
-bench_autopilots.py``).
+bit for bit on either (``tests/test_compiled.py``); it only costs less time a tick
+(``benchmarks/bench_autopilots.py``).
 
 Importing ``rotorlab`` puts a finder first on ``sys.meta_path`` that, for a module of :data:`MODULES`, takes the
 compiled extension only when it was built from the very source beside it (the build records the source's SHA-256
