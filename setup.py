@@ -4,12 +4,23 @@ The top-level folders install under the rotorlab namespace (``sim/`` -> ``rotorl
 ``[tool.setuptools] package-dir``), which setuptools' own ``packages.find`` cannot express: it would install
 ``sim`` as a top-level package. Every package below each mapped folder (a folder with an ``__init__.py``) is
 found here instead, so a new sub-package reaches the wheel without a hand-written list.
+
+The per-tick modules (``rotorlab.compiled.MODULES``) are also compiled from their ``.py`` files by Cython, as
+optional extensions: without Cython or a C compiler, or where one module fails to compile, the build warns and
+that module installs as Python alone (its ``.py`` is in the wheel either way). ``ROTORLAB_PURE_PYTHON=1`` at build
+time compiles nothing. The C flags keep the compiled arithmetic the Python arithmetic: ``-ffp-contract=off`` (no
+fused multiply-add, whatever ``-march`` a user's ``CFLAGS`` bring), no ``-ffast-math``.
 """
 
+import concurrent.futures
+import hashlib
+import importlib.util
+import os
 import tomllib
 from pathlib import Path
 
-from setuptools import find_packages, setup
+from setuptools import Extension, find_packages, setup
+from setuptools.command.build_ext import build_ext
 
 ROOT = Path(__file__).resolve().parent
 
@@ -23,5 +34,86 @@ def discover(root: Path = ROOT) -> list[str]:
     return sorted(packages)
 
 
+def _compiled_module(root: Path = ROOT):
+    """``rotorlab/compiled.py`` loaded from its file (the package is not importable while it is being built)."""
+    spec = importlib.util.spec_from_file_location("_rotorlab_compiled", root / "rotorlab" / "compiled.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def extensions(root: Path = ROOT) -> list[Extension]:
+    """One extension per module of ``rotorlab.compiled.MODULES``, its source the module's ``.py`` (relative to
+    ``root``, through pyproject's package-dir mapping)."""
+    package_dir = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
+    out = []
+    for name in _compiled_module(root).MODULES:
+        package = max((p for p in package_dir if name.startswith(p + ".")), key=len)
+        rel = name[len(package) + 1:].replace(".", "/") + ".py"
+        out.append(Extension(name, [f"{package_dir[package]}/{rel}"]))
+    return out
+
+
+class OptionalBuildExt(build_ext):
+    """``build_ext`` that cythonizes the extensions first and lets any of them fail: a module that does not build
+    stays Python (a warning says which and why). Beside each extension built it writes the SHA-256 of the source
+    it was compiled from (``rotorlab.compiled`` imports an extension only where that matches its ``.py``)."""
+
+    def finalize_options(self):
+        # cythonized before setuptools reads the extensions (it records per extension what its later steps use)
+        compiled = _compiled_module()
+        self._sources = {ext.name: ext.sources[0] for ext in extensions()}  # the .py of each, not its .c
+        # once per build: setuptools may make several build_ext commands of one distribution (editable mode)
+        if not getattr(self.distribution, "_cythonized", False):
+            self.distribution._cythonized = True
+            if os.environ.get(compiled.PURE_ENV, "") not in ("", "0"):
+                self.warn(f"{compiled.PURE_ENV} is set: the per-tick modules install as Python only")
+                self.distribution.ext_modules = []
+            elif self.distribution.ext_modules:
+                try:
+                    from Cython.Build import cythonize
+
+                    # language_level 3 and no annotation typing: the .py files' annotations are documentation, so
+                    # a compiled function takes what the Python one takes; C types come from the .pxd files alone
+                    self.distribution.ext_modules = cythonize(
+                        self.distribution.ext_modules, build_dir=os.path.join("build", "cython"), quiet=True,
+                        nthreads=os.cpu_count() or 1,
+                        compiler_directives={"language_level": 3, "binding": True, "annotation_typing": False})
+                except Exception as exc:  # no Cython, or a module it cannot translate: the pure build installs
+                    self.warn(f"Cython could not translate the per-tick modules ({exc!r}); they install as Python "
+                              "only")
+                    self.distribution.ext_modules = []
+        super().finalize_options()
+
+    def run(self):
+        super().run()
+        if self.inplace:  # setuptools built into build_lib and copied the extensions into the source tree
+            for ext in self.extensions:
+                self._record_source(ext, self.get_ext_fullpath(ext.name))
+
+    def build_extensions(self):
+        # one compiler process per core (the compiler runs outside Python: threads suffice)
+        with concurrent.futures.ThreadPoolExecutor(os.cpu_count() or 1) as pool:
+            ok = list(pool.map(self._build_one, self.extensions))
+        built = [ext for ext, done in zip(self.extensions, ok) if done]
+        # what setuptools copies into the source tree (an editable install) and lists as outputs: the built ones
+        self.extensions = built
+
+    def _build_one(self, ext) -> bool:
+        if self.compiler.compiler_type == "unix":
+            ext.extra_compile_args = [*ext.extra_compile_args, "-ffp-contract=off", "-g0"]
+        try:
+            self.build_extension(ext)
+        except Exception as exc:  # a compiler missing or failing: this module stays Python
+            self.warn(f"{ext.name} was not compiled ({exc}); it installs as Python only")
+            return False
+        self._record_source(ext, self.get_ext_fullpath(ext.name))
+        return True
+
+    def _record_source(self, ext, ext_path: str) -> None:
+        digest = hashlib.sha256((ROOT / self._sources[ext.name]).read_bytes()).hexdigest()
+        Path(ext_path + _compiled_module().SOURCE_HASH_SUFFIX).write_text(digest + "\n", encoding="ascii")
+
+
 if __name__ == "__main__":
-    setup(packages=discover())
+    setup(packages=discover(), ext_modules=extensions(), cmdclass={"build_ext": OptionalBuildExt})

@@ -1,10 +1,12 @@
 """Build the wheel (``pip wheel --no-deps``) into a temporary folder and check it holds every package of the
-source tree (every folder with an ``__init__.py`` below the folders pyproject maps under ``rotorlab``) and the
-vehicle, scene and spec data files. Exit status 1 with the missing names otherwise.
+source tree (every folder with an ``__init__.py`` below the folders pyproject maps under ``rotorlab``), the
+vehicle, scene and spec data files, and the ``.py`` source of every module a build compiles (``rotorlab.compiled``;
+the wheel holds the extensions too where a compiler was there). Exit status 1 with the missing names otherwise.
 
 Usage: python .ci/check_wheel.py
 """
 
+import importlib.util
 import subprocess
 import sys
 import tempfile
@@ -27,6 +29,13 @@ def source_packages() -> set[str]:
     return out
 
 
+def compiled_modules() -> tuple[str, ...]:
+    spec = importlib.util.spec_from_file_location("_rotorlab_compiled", ROOT / "rotorlab" / "compiled.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.MODULES
+
+
 def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp, str(ROOT)], check=True)
@@ -41,6 +50,16 @@ def main() -> int:
         return 1
     if not any(n.endswith("anteos-p2a2/vehicle.toml") for n in names):
         print("missing from the wheel: the vehicle TOML files")
+        return 1
+    sources = sorted(m for m in compiled_modules() if m.replace(".", "/") + ".py" not in names)
+    if sources:
+        print("missing from the wheel: the source of " + ", ".join(sources))
+        return 1
+    built = [n for n in names if n.endswith((".so", ".pyd"))]
+    print(f"compiled modules in the wheel: {len(built)} of {len(compiled_modules())}")
+    unrecorded = [n for n in built if n + ".source-sha256" not in names]
+    if unrecorded:  # rotorlab.compiled would never import them
+        print("missing from the wheel: the source hash of " + ", ".join(unrecorded))
         return 1
     return 0
 

@@ -18,15 +18,20 @@ per control tick: what the runner, the sensors, the flight software and the log 
 decides how the speed falls with the loop rate (issue 28: "eight times the controller ticks must not cost eight
 times the time"). Target of issue 28: PX4's laws at >= 0.6x raw mj_step.
 
+The modules of one tick run compiled where the install compiled them (:mod:`rotorlab.compiled`; the first line
+printed says how many); ``ROTORLAB_PURE_PYTHON=1 python benchmarks/bench_autopilots.py`` measures the Python build.
+
 Usage: ``python benchmarks/bench_autopilots.py [repeats]``
 """
 
+import os
 import statistics
 import sys
 import time
 
 from timing import raw_step_s
 
+from rotorlab import compiled
 from rotorlab.sim.control.autopilot import AutopilotSpec
 from rotorlab.sim.runner import run_scenario
 
@@ -64,6 +69,10 @@ def _quartiles(v):
 
 
 def main(repeats: int = 21) -> dict:
+    build = compiled.status()
+    n_compiled = sum(v == "compiled" for v in build.values())
+    print(f"modules of the tick compiled: {n_compiled} of {len(build)} "
+          f"({', '.join(sorted(set(build.values())))}); load average {os.getloadavg()[0]:.2f}")
     for vehicle, controller, _ in FLOWN.values():  # warm-up: imports, caches, compiled models
         _closed(vehicle, controller)
         _raw(vehicle)
@@ -99,6 +108,7 @@ def main(repeats: int = 21) -> dict:
               f"beyond the physics {per_tick:5.1f} us a tick")
     for v, f in physics.items():
         print(f"  raw mj_step of {v} with the sensors off / with them: {f:.3f} (median)")
+    print(f"load average {os.getloadavg()[0]:.2f}")
     return out
 
 

@@ -10,6 +10,9 @@ import os
 from importlib.metadata import version as _version
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+# the API reference documents the Python source: autodoc reads it (signatures, [source] links) from the .py modules,
+# not from the extensions a build compiled from them (rotorlab.compiled)
+os.environ.setdefault("ROTORLAB_PURE_PYTHON", "1")
 
 project = "rotorlab"
 author = "rotorlab developers"

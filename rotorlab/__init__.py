@@ -44,3 +44,9 @@ else:
         if _id not in _gym.registry:
             _gym.register(id=_id, entry_point=_entry, kwargs=_kw, max_episode_steps=500)
     del _id, _entry, _kw, _gym
+
+# the per-tick modules a build compiled, imported only where built from the source beside them (rotorlab.compiled)
+from rotorlab import compiled as _compiled  # noqa: E402
+
+_compiled.install()
+del _compiled

@@ -17,7 +17,9 @@ ROOT = Path(__file__).resolve().parents[1]
 def _modules() -> dict[str, str]:
     """Every module of the installed package -> its source file. The roots are the packages pyproject maps
     (``rotorlab`` and the top-level folders installed under it); each is walked where it is installed (an
-    editable install resolves the mapped folders through its own finder, which ``pkgutil`` does not see)."""
+    editable install resolves the mapped folders through its own finder, which ``pkgutil`` does not see). A module
+    a build compiled (``rotorlab.compiled``) is read from the ``.py`` beside its extension, the source it was built
+    from."""
     roots = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-dir"]
     mods = {}
     for root in roots:
@@ -25,8 +27,13 @@ def _modules() -> dict[str, str]:
         mods[root] = spec.origin
         for info in pkgutil.walk_packages(spec.submodule_search_locations, root + "."):
             sub = importlib.util.find_spec(info.name)
-            if sub is not None and sub.origin and sub.origin.endswith(".py"):
-                mods[info.name] = sub.origin
+            if sub is None or not sub.origin:
+                continue
+            origin = Path(sub.origin)
+            if origin.suffix != ".py":
+                origin = origin.with_name(info.name.rpartition(".")[2] + ".py")
+            if origin.is_file():
+                mods[info.name] = str(origin)
     return mods
 
 
