@@ -592,12 +592,9 @@ def tuned_parameters(autopilot, gains: Mapping[str, Mapping[str, float]],
     >>> tuned_parameters("px4", {"roll": {"MC_ROLLRATE_P": 0.2}})
     {'MC_ROLLRATE_P': 0.2, 'MC_ROLLRATE_K': 1.0}
     """
-    ap = get_autopilot(autopilot) if isinstance(autopilot, str) else autopilot
     out = dict(filters or {})
     for axis, g in gains.items():
-        out.update(g)
-        if ap.NAME == "px4":
-            out[ap.axis_names(axis)["K"]] = 1.0
+        out.update(apply_gains(autopilot, {}, axis, g))
     return out
 
 
