@@ -1847,9 +1847,12 @@ def _sweep_size(job):
             vals[k] = prob.exact_peak(th)[0]
     fg = _Objective(prob, lo, hi)
     radius = 10.0 ** lg * np.sqrt(D.shape[1])
-    out = [(*_sphere_min(fg, D[k], radius, tol), lg) for k in np.argsort(vals, kind="stable")[:SWEEP_REFINE]
-           if np.isfinite(vals[k])]
-    return [(f, lg, x) for f, x, lg in out], time.process_time() - c0
+    out = []
+    for k in np.argsort(vals, kind="stable")[:SWEEP_REFINE]:
+        if np.isfinite(vals[k]):
+            f, x = _sphere_min(fg, D[k], radius, tol)
+            out.append((f, lg, x))
+    return out, time.process_time() - c0
 
 
 def _sweep_start(job):
