@@ -13,6 +13,7 @@ fused multiply-add, whatever ``-march`` a user's ``CFLAGS`` bring), no ``-ffast-
 """
 
 import concurrent.futures
+import functools
 import hashlib
 import importlib.util
 import os
@@ -34,8 +35,10 @@ def discover(root: Path = ROOT) -> list[str]:
     return sorted(packages)
 
 
+@functools.cache
 def _compiled_module(root: Path = ROOT):
-    """``rotorlab/compiled.py`` loaded from its file (the package is not importable while it is being built)."""
+    """``rotorlab/compiled.py`` loaded from its file (the package is not importable while it is being built),
+    once per build process."""
     spec = importlib.util.spec_from_file_location("_rotorlab_compiled", root / "rotorlab" / "compiled.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
