@@ -181,6 +181,27 @@ def test_relative_slope_is_the_relative_decrease_along_the_best_direction():
     assert relative_slope(np.array([[1.0, -1.0]]), np.array([3.0]), 5.0) == pytest.approx(0.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("nnls_fails", [False, True])
+def test_hull_weights_give_the_shortest_vector_even_where_nnls_stops(monkeypatch, nnls_fails):
+    # scipy's nnls raises at its iteration limit (seen on COMPleib HE4 with scipy 1.18.1): the fallback must give
+    # the same point. Shortest vector of the segment g1-g2, analytic: t = clip(g2.(g2-g1) / |g2-g1|^2, 0, 1)
+    if nnls_fails:
+        def raising(*args, **kwargs):
+            raise RuntimeError("Maximum number of iterations reached.")
+        monkeypatch.setattr(hs, "nnls", raising)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        g1, g2 = rng.standard_normal(4), rng.standard_normal(4)
+        t = np.clip(g2 @ (g2 - g1) / ((g2 - g1) @ (g2 - g1)), 0.0, 1.0)
+        h = hs._min_norm_hull(np.column_stack([g1, g2]))
+        np.testing.assert_allclose(h, t * g1 + (1 - t) * g2, atol=1e-5 * np.linalg.norm(g1 - g2))
+    # the origin inside the hull of three gradients, the third repeated: the shortest vector is zero
+    G = np.array([[1.0, -1.0, 0.0, 0.0], [1.0, 1.0, -1.0, -1.0]])
+    lam = hs._hull_weights(G)
+    assert lam.min() >= 0.0 and lam.sum() == pytest.approx(1.0)
+    assert np.linalg.norm(G @ lam) < 1e-5
+
+
 @pytest.mark.filterwarnings("ignore::FutureWarning")
 def test_pid_in_other_units_reaches_the_same_gamma():
     # mixed sensitivity [W1 S; W2 KS] of 1/(s + 1) with a PID whose filter constant is tuned too, with the control

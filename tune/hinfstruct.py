@@ -92,7 +92,7 @@ from collections.abc import Sequence
 
 import control as ct
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar, nnls
+from scipy.optimize import lsq_linear, minimize, minimize_scalar, nnls
 
 from rotorlab import lti
 from rotorlab.executor import map_tasks, task_seeds
@@ -975,12 +975,19 @@ def _weak_wolfe(fg, x, f, g, d, c1=1e-4, c2=0.5, max_eval=40):
 def _hull_weights(G):
     """Convex weights ``l`` of the smallest-norm vector ``G l`` of the convex hull of the columns of ``G``
     (nx, k): ``min ||G l||, l >= 0, sum l = 1`` as a non-negative least-squares problem with the simplex
-    equality as a heavily weighted extra row (scipy's nnls; k is at most a few dozen)."""
+    equality as a heavily weighted extra row (scipy's nnls; k is at most a few dozen). Where nnls stops at its
+    iteration limit, scipy's bounded-variable least squares solves the same problem."""
     k = G.shape[1]
     if k == 1:
         return np.ones(1)
     w = 1e3 * max(np.abs(G).max(), 1e-300)
-    lam, _ = nnls(np.vstack([G, np.full((1, k), w)]), np.r_[np.zeros(G.shape[0]), w])
+    A, b = np.vstack([G, np.full((1, k), w)]), np.r_[np.zeros(G.shape[0]), w]
+    try:
+        lam, _ = nnls(A, b)
+    except RuntimeError:
+        # nnls raises at its iteration limit (3 k), which rounding can reach on nearly parallel gradients (COMPleib
+        # HE4 with its measurement in other units, on scipy 1.18.1 with numpy 2.5.2); BVLS returns its best point
+        lam = lsq_linear(A, b, bounds=(0.0, np.inf), method="bvls").x
     return lam / max(lam.sum(), 1e-300)
 
 
