@@ -6,9 +6,9 @@ gamma does not change with units; the table gives the largest relative deviation
 gamma from the unscaled one, and the CPU time per run (starts and hops together). The acceptance bar is 0.5 %.
 ``--starts 1 --hops 0`` measures one plain start instead (the engine's arithmetic alone).
 
-Run: ``python benchmarks/bench_hinf_scaling.py [--problems AC15 chain40] [--jobs 1] [--executor dask://HOST:PORT]``. The runs go through
-the project's executor (``--jobs N``: a local pool of N processes, all problems' runs in one map). The machine
-may be shared: the load average is printed.
+Run: ``python benchmarks/bench_hinf_scaling.py [--problems AC15 chain40] [--jobs 1] [--executor dask://HOST:PORT]``.
+The runs go through the project's executor (``--jobs N``: a local pool of N processes, all problems' runs in one
+map). The machine may be shared: the load average is printed.
 """
 
 import os
@@ -68,13 +68,14 @@ def main():
     print(f"load average at start: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores", flush=True)
     rows = []
     nf = len(a.factors)
+    per = 1 + 2 * nf  # runs per problem: unscaled, then each factor on the controls and on the measurements
     # every problem's runs in one map, so a pool of many processes is kept busy across problems
     jobs = [job for name in a.problems
             for job in [(name, None, 1.0, kw)] + [(name, side, f, kw) for side in "uy" for f in a.factors]]
     with get_executor(a.executor or ("local" if a.jobs > 1 else "serial"), a.jobs) as ex:
         results = ex.map(_solve, jobs, desc="runs", progress=True)
     for i, name in enumerate(a.problems):
-        res = results[i * (1 + 2 * nf): (i + 1) * (1 + 2 * nf)]
+        res = results[i * per: (i + 1) * per]
         g0 = res[0][0]
         dev = [r[0] / g0 - 1 for r in res[1:]]
         worst = max(dev, key=abs)
@@ -84,7 +85,8 @@ def main():
               f"{[f'{r[0]:.6g}' for r in res[1:1 + nf]]}; y: {[f'{r[0]:.6g}' for r in res[1 + nf:]]}; worst "
               f"{100 * worst:+.3f} %; median {np.median(secs):.1f} CPU s/run", flush=True)
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
-    print(f"\n| problem | gamma (unscaled) | slope | worst deviation, {2 * nf} rescaled runs | within 0.5 % | median CPU s/run |")
+    print(f"\n| problem | gamma (unscaled) | slope | worst deviation, {per - 1} rescaled runs | within 0.5 % "
+          "| median CPU s/run |")
     print("|---|---|---|---|---|---|")
     for name, g0, worst, ok, n, sec, sl in rows:
         print(f"| {name} | {g0:.5g} | {sl:.1e} | {100 * worst:+.3f} % | {ok}/{n} | {sec:.1f} |")
