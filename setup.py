@@ -57,6 +57,22 @@ def extensions(root: Path = ROOT) -> list[Extension]:
     return out
 
 
+def _stage_pxd(sources: dict, root: Path = ROOT) -> str:
+    """A folder of the per-tick modules' ``.pxd`` files at their installed names' paths
+    (``rotorlab/sim/frames.pxd``), for Cython's include path; returns it. Cython looks a module's ``.pxd`` up by
+    the module's full name, and ``sim/frames.pxd`` is not where ``rotorlab.sim.frames`` would be (pyproject's
+    package-dir mapping): found nowhere, it would be silently ignored and the module compiled untyped. The
+    repository root is on the include path too, for ``rotorlab/`` itself (``rotorlab/autopilots/px4.pxd``)."""
+    stage = root / "build" / "cython-pxd"
+    for name, source in sources.items():
+        pxd = (root / source).with_suffix(".pxd")
+        target = stage.joinpath(*name.split(".")).with_suffix(".pxd")
+        if pxd.is_file() and not (root.joinpath(*name.split(".")).with_suffix(".pxd")).is_file():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(pxd.read_bytes())
+    return str(stage)
+
+
 class OptionalBuildExt(build_ext):
     """``build_ext`` that cythonizes the extensions first and lets any of them fail: a module that does not build
     stays Python (a warning says which and why). Beside each extension built it writes the SHA-256 of the source
@@ -73,20 +89,33 @@ class OptionalBuildExt(build_ext):
                 self.warn(f"{compiled.PURE_ENV} is set: the per-tick modules install as Python only")
                 self.distribution.ext_modules = []
             elif self.distribution.ext_modules:
-                try:
-                    from Cython.Build import cythonize
-
-                    # language_level 3 and no annotation typing: the .py files' annotations are documentation, so
-                    # a compiled function takes what the Python one takes; C types come from the .pxd files alone
-                    self.distribution.ext_modules = cythonize(
-                        self.distribution.ext_modules, build_dir=os.path.join("build", "cython"), quiet=True,
-                        nthreads=os.cpu_count() or 1,
-                        compiler_directives={"language_level": 3, "binding": True, "annotation_typing": False})
-                except Exception as exc:  # no Cython, or a module it cannot translate: the pure build installs
-                    self.warn(f"Cython could not translate the per-tick modules ({exc!r}); they install as Python "
-                              "only")
-                    self.distribution.ext_modules = []
+                self.distribution.ext_modules = self._cythonize(self.distribution.ext_modules)
         super().finalize_options()
+
+    def _cythonize(self, exts: list) -> list:
+        """The extensions translated to C: all at once (one process per core), or, where that fails, one by one,
+        so that a module Cython cannot translate installs as Python alone (a warning says which and why)."""
+        try:
+            from Cython.Build import cythonize
+        except ImportError as exc:
+            self.warn(f"Cython is not installed ({exc}); the per-tick modules install as Python only")
+            return []
+        # language_level 3 and no annotation typing: the .py files' annotations are documentation, so a compiled
+        # function takes what the Python one takes; C types come from the .pxd files alone
+        options = dict(build_dir=os.path.join("build", "cython"), quiet=True,
+                       include_path=[str(ROOT), _stage_pxd(self._sources)],
+                       compiler_directives={"language_level": 3, "binding": True, "annotation_typing": False})
+        try:
+            return cythonize(exts, nthreads=os.cpu_count() or 1, **options)
+        except Exception:  # noqa: BLE001 - which module failed is found below, one at a time
+            pass
+        out = []
+        for ext in exts:
+            try:
+                out += cythonize([ext], **options)
+            except Exception as exc:  # noqa: BLE001 - a module Cython cannot translate stays Python
+                self.warn(f"Cython could not translate {ext.name} ({exc!r}); it installs as Python only")
+        return out
 
     def run(self):
         super().run()

@@ -11,6 +11,7 @@ import hashlib
 import importlib.machinery
 import json
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -120,3 +121,43 @@ def test_every_compiled_module_is_a_source_file_of_the_package(name):
     assert os.path.isfile(source)
     mod = sys.modules.get(name) or __import__(name, fromlist=["_"])
     assert mod.__file__ == (source if spec is None or why != "compiled" else spec.origin)
+
+
+def _pxd_declarations(pxd: str) -> tuple[list, list]:
+    """The extension types (``cdef class X``) and module-level ``cpdef`` functions a ``.pxd`` declares."""
+    classes = re.findall(r"^cdef class (\w+)", pxd, flags=re.M)
+    functions = re.findall(r"^cpdef (?:[\w.]+ )?(\w+)\(", pxd, flags=re.M)
+    return classes, functions
+
+
+_HEAPTYPE = 1 << 9  # Py_TPFLAGS_HEAPTYPE: set for a class statement's class, not for an extension type
+
+
+def _pxd_path(name: str) -> str:
+    """Where the ``.pxd`` of module ``name`` sits: beside its ``.py``."""
+    parent = __import__(name.rpartition(".")[0], fromlist=["_"])
+    return os.path.join(parent.__path__[0], name.rpartition(".")[2] + ".pxd")
+
+
+_WITH_PXD = [n for n in compiled.MODULES if os.path.isfile(_pxd_path(n))]
+
+
+@pytest.mark.parametrize("name", _WITH_PXD)
+def test_a_compiled_module_was_built_with_the_pxd_beside_it(name):
+    """Cython finds a module's ``.pxd`` by the module's installed name, which for ``sim/`` and ``vehicles/`` is
+    not the folder the ``.pxd`` sits in: a build that misses it compiles the module untyped without a word
+    (``setup.py`` stages the files). Built with it, the ``.pxd``'s classes are extension types (static types,
+    where a Python class is a heap type) and its module-level ``cpdef`` functions are exported in
+    ``__pyx_capi__``."""
+    mod = __import__(name, fromlist=["_"])
+    status = compiled.status()[name]
+    if status != "compiled":  # a build that compiled nothing: the .py files are the module
+        assert status.startswith("pure: ") and mod.__file__.endswith(".py")
+        return
+    with open(_pxd_path(name), encoding="utf-8") as f:
+        classes, functions = _pxd_declarations(f.read())
+    assert classes or functions, name
+    for cls in classes:
+        assert not getattr(mod, cls).__flags__ & _HEAPTYPE, f"{name}.{cls} is a Python class: its .pxd was not used"
+    for fn in functions:
+        assert fn in getattr(mod, "__pyx_capi__", {}), f"{name}.{fn} is not the .pxd's cpdef function"

@@ -196,7 +196,9 @@ class AutopilotController:
         """
         # plain floats throughout, the laws' methods bound once (__init__): it runs every tick
         if self.rate_reference is not None:
-            rate_sp = tuple(float(v) * _D2R for v in self.rate_reference(t))
+            # unpacked, not a generator: Cython compiles no closure inside a cpdef method (autopilot.pxd)
+            p_sp, q_sp, r_sp = self.rate_reference(t)
+            rate_sp = (float(p_sp) * _D2R, float(q_sp) * _D2R, float(r_sp) * _D2R)
         else:
             rate_sp = self._att_update(euler_to_quat(phi * _D2R, theta * _D2R, psi * _D2R),
                                        euler_to_quat(phi_ref * _D2R, theta_ref * _D2R, psi_ref * _D2R))
