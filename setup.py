@@ -62,7 +62,7 @@ def _stage_pxd(sources: dict, root: Path = ROOT) -> str:
     (``rotorlab/sim/frames.pxd``), for Cython's include path; returns it. Cython looks a module's ``.pxd`` up by
     the module's full name, and ``sim/frames.pxd`` is not where ``rotorlab.sim.frames`` would be (pyproject's
     package-dir mapping): found nowhere, it would be silently ignored and the module compiled untyped. The
-    repository root is on the include path too, for ``rotorlab/`` itself (``rotorlab/autopilots/px4.pxd``)."""
+    repository root is on the include path too, for ``rotorlab/`` itself (``cimport rotorlab._libm``)."""
     stage = root / "build" / "cython-pxd"
     for name, source in sources.items():
         pxd = (root / source).with_suffix(".pxd")

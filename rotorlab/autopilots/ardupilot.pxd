@@ -3,6 +3,8 @@
 # Python module (docs/benchmarks.md, "Compiled tick").
 import cython
 
+cimport rotorlab._libm as math  # math.sin etc. of the .py as C calls of libm (rotorlab/_libm.pxd)
+
 cdef class RateController:
     cdef public double dt
     cdef public list _axes, _g

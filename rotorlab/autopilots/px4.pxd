@@ -3,6 +3,8 @@
 # double operations in the same order as the Python module (docs/benchmarks.md, "Compiled tick").
 import cython
 
+cimport rotorlab._libm as math  # math.sin etc. of the .py as C calls of libm (rotorlab/_libm.pxd)
+
 cdef double _I_FACTOR_RAD_S
 cdef double _NEAR_1
 

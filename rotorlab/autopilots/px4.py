@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from math import acos, asin, cos, sin, sqrt  # bound once: the attitude law calls them every tick
 
 import control as ct
 
@@ -355,13 +354,13 @@ class AttitudeController:
         # the smallest rotation taking the one onto the other
         cx, cy, cz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
         dot = sx * tx + sy * ty + sz * tz
-        if dot < 0.0 and sqrt(cx * cx + cy * cy + cz * cz) < 1e-5:  # the cheap test first: both are needed
+        if dot < 0.0 and math.sqrt(cx * cx + cy * cy + cz * cz) < 1e-5:  # the cheap test first: both are needed
             # opposite directions: a half turn about an axis normal to the body z axis
             ox, oy, oz = (1.0, 0.0, 0.0) if abs(sx) < 0.9 else (0.0, 1.0, 0.0)
             w, x, y, z = 0.0, sy * oz - sz * oy, sz * ox - sx * oz, sx * oy - sy * ox
         else:
-            w, x, y, z = dot + sqrt((sx * sx + sy * sy + sz * sz) * (tx * tx + ty * ty + tz * tz)), cx, cy, cz
-        n = sqrt(w * w + x * x + y * y + z * z)
+            w, x, y, z = dot + math.sqrt((sx * sx + sy * sy + sz * sz) * (tx * tx + ty * ty + tz * tz)), cx, cy, cz
+        n = math.sqrt(w * w + x * x + y * y + z * z)
         w, x, y, z = w / n, x / n, y / n, z / n
         if x > _NEAR_1 or x < -_NEAR_1 or y > _NEAR_1 or y < -_NEAR_1:  # |x| or |y| > 1 - 1e-5, no abs() calls
             rw, rx, ry, rz = dw, dx, dy, dz
@@ -378,7 +377,7 @@ class AttitudeController:
         c0 = -1.0 if mw < -1.0 else (1.0 if mw > 1.0 else mw)  # min(max(v, -1), 1), a NaN kept
         c3 = -1.0 if mz < -1.0 else (1.0 if mz > 1.0 else mz)
         yw = self.yaw_w
-        ew, ez = cos(yw * acos(c0)), sin(yw * asin(c3))
+        ew, ez = math.cos(yw * math.acos(c0)), math.sin(yw * math.asin(c3))
         # q_d = qd_red (ew, 0, 0, ez): the general product's terms with a zero factor left out (a zero product
         # changes no non-zero sum; at most the sign of an exact zero)
         dw, dx, dy, dz = rw * ew - rz * ez, rx * ew + ry * ez, -rx * ez + ry * ew, rw * ez + rz * ew

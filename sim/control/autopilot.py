@@ -21,7 +21,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Mapping
-from math import cos, sin  # bound once: euler_to_quat runs twice a tick
 from pathlib import Path
 
 from rotorlab import autopilots
@@ -37,9 +36,9 @@ def euler_to_quat(phi_rad: float, theta_rad: float, psi_rad: float) -> tuple:
     """Quaternion ``(w, x, y, z)`` of the yaw-pitch-roll (Z-Y-X) Euler angles, body (FRD) to world (NED)."""
     # x * 0.5 is x / 2 exactly, and float * float is the cheaper operation in CPython (as 2.0 for 2 in the laws)
     h, t, y = phi_rad * 0.5, theta_rad * 0.5, psi_rad * 0.5
-    cr, sr = cos(h), sin(h)
-    cp, sp = cos(t), sin(t)
-    cy, sy = cos(y), sin(y)
+    cr, sr = math.cos(h), math.sin(h)
+    cp, sp = math.cos(t), math.sin(t)
+    cy, sy = math.cos(y), math.sin(y)
     return (cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
             cr * cp * sy - sr * sp * cy)
 

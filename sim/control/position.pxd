@@ -3,6 +3,8 @@
 # (docs/benchmarks.md, "Compiled tick").
 import cython
 
+cimport rotorlab._libm as math  # math.sin etc. of the .py as C calls of libm (rotorlab/_libm.pxd)
+
 cdef double _DEG
 
 cdef class PositionHold:
