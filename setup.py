@@ -62,14 +62,23 @@ def _stage_pxd(sources: dict, root: Path = ROOT) -> str:
     (``rotorlab/sim/frames.pxd``), for Cython's include path; returns it. Cython looks a module's ``.pxd`` up by
     the module's full name, and ``sim/frames.pxd`` is not where ``rotorlab.sim.frames`` would be (pyproject's
     package-dir mapping): found nowhere, it would be silently ignored and the module compiled untyped. The
-    repository root is on the include path too, for ``rotorlab/`` itself (``cimport rotorlab._libm``)."""
+    repository root is on the include path too, for ``rotorlab/`` itself (``cimport rotorlab._libm``).
+
+    A copy is rewritten only when its source changed (Cython retranslates a module whose ``.pxd`` is newer than
+    its C file) and removed when its source is gone (a stale copy would still be found and compiled in)."""
     stage = root / "build" / "cython-pxd"
+    wanted = {}
     for name, source in sources.items():
         pxd = (root / source).with_suffix(".pxd")
-        target = stage.joinpath(*name.split(".")).with_suffix(".pxd")
         if pxd.is_file() and not (root.joinpath(*name.split(".")).with_suffix(".pxd")).is_file():
+            wanted[stage.joinpath(*name.split(".")).with_suffix(".pxd")] = pxd.read_bytes()
+    for old in stage.rglob("*.pxd"):
+        if old not in wanted:
+            old.unlink()
+    for target, text in wanted.items():
+        if not target.is_file() or target.read_bytes() != text:
             target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_bytes(pxd.read_bytes())
+            target.write_bytes(text)
     return str(stage)
 
 
