@@ -10,11 +10,7 @@ from libc.math cimport INFINITY as inf
 from libc.math cimport M_PI as pi
 
 
-# CPython's math.radians and math.degrees multiply by these very constants (Modules/mathmodule.c: degToRad =
-# Py_MATH_PI / 180.0, radToDeg = 180.0 / Py_MATH_PI; the C compiler folds the quotient to the same double)
+# CPython's math.radians multiplies by this very constant (Modules/mathmodule.c: degToRad = Py_MATH_PI / 180.0; the
+# C compiler folds the quotient to the same double)
 cdef inline double radians(double x) noexcept nogil:
     return x * (pi / 180.0)
-
-
-cdef inline double degrees(double x) noexcept nogil:
-    return x * (180.0 / pi)
