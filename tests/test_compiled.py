@@ -111,13 +111,19 @@ def test_an_extension_is_imported_only_where_built_from_the_source_beside_it(tmp
     assert compiled._choose("pkg.mod", [str(pkg)]) == (None, "pure: not built")
 
 
+def _beside(name: str, suffix: str) -> str:
+    """The file of module ``name`` with ``suffix`` (``.py``, ``.pxd``) in its package's folder."""
+    parent = __import__(name.rpartition(".")[0], fromlist=["_"])
+    return os.path.join(parent.__path__[0], name.rpartition(".")[2] + suffix)
+
+
 @pytest.mark.parametrize("name", compiled.MODULES)
 def test_every_compiled_module_is_a_source_file_of_the_package(name):
     """What the build compiles exists as a ``.py`` (``setup.py`` maps the names through pyproject's package-dir),
     and the module imports from the build the finder chose."""
     parent = __import__(name.rpartition(".")[0], fromlist=["_"])
     spec, why = compiled._choose(name, parent.__path__)
-    source = os.path.join(parent.__path__[0], name.rpartition(".")[2] + ".py")
+    source = _beside(name, ".py")
     assert os.path.isfile(source)
     mod = sys.modules.get(name) or __import__(name, fromlist=["_"])
     assert mod.__file__ == (source if spec is None or why != "compiled" else spec.origin)
@@ -133,13 +139,7 @@ def _pxd_declarations(pxd: str) -> tuple[list, list]:
 _HEAPTYPE = 1 << 9  # Py_TPFLAGS_HEAPTYPE: set for a class statement's class, not for an extension type
 
 
-def _pxd_path(name: str) -> str:
-    """Where the ``.pxd`` of module ``name`` sits: beside its ``.py``."""
-    parent = __import__(name.rpartition(".")[0], fromlist=["_"])
-    return os.path.join(parent.__path__[0], name.rpartition(".")[2] + ".pxd")
-
-
-_WITH_PXD = [n for n in compiled.MODULES if os.path.isfile(_pxd_path(n))]
+_WITH_PXD = [n for n in compiled.MODULES if os.path.isfile(_beside(n, ".pxd"))]
 
 
 @pytest.mark.parametrize("name", _WITH_PXD)
@@ -154,7 +154,7 @@ def test_a_compiled_module_was_built_with_the_pxd_beside_it(name):
     if status != "compiled":  # a build that compiled nothing: the .py files are the module
         assert status.startswith("pure: ") and mod.__file__.endswith(".py")
         return
-    with open(_pxd_path(name), encoding="utf-8") as f:
+    with open(_beside(name, ".pxd"), encoding="utf-8") as f:
         classes, functions = _pxd_declarations(f.read())
     assert classes or functions, name
     for cls in classes:
