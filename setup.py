@@ -69,9 +69,9 @@ def _stage_pxd(sources: dict, root: Path = ROOT) -> str:
     stage = root / "build" / "cython-pxd"
     wanted = {}
     for name, source in sources.items():
-        pxd = (root / source).with_suffix(".pxd")
-        if pxd.is_file() and not (root.joinpath(*name.split(".")).with_suffix(".pxd")).is_file():
-            wanted[stage.joinpath(*name.split(".")).with_suffix(".pxd")] = pxd.read_bytes()
+        pxd, installed = (root / source).with_suffix(".pxd"), Path(*name.split(".")).with_suffix(".pxd")
+        if pxd.is_file() and not (root / installed).is_file():
+            wanted[stage / installed] = pxd.read_bytes()
     for old in stage.rglob("*.pxd"):
         if old not in wanted:
             old.unlink()
