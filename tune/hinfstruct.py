@@ -52,27 +52,30 @@ Clarke-stationary points with probability one; its cost, ``n + 1`` exact norms p
 BFGS has stopped (benchmarks/bench_hinfstruct.py and benchmarks/compleib.py have the numbers; the cascade
 tuner, whose objective is a grid search over ten goals, skips it to keep a start under a second).
 
-Units. The optimiser's variables are the parameters divided by a unit chosen from the plant, never from a
-fixed size or the start: a parameter that carries the units of the plant's signals (static gains, PID gains,
-B, C, D of state-space blocks, :meth:`rotorlab.tune.blocks.Block.io_exponents`) is measured in
-``1 / (gu_i gy_j)``, where ``gu``, ``gy`` are sizes of the controls and measurements fitted to the log-magnitude of
-``P22`` at the frequencies where the open-loop performance is large (:func:`_plant_units`); time constants and the like
-keep a unit of their own. Rescaling any control or measurement of P by a positive factor, with the controller mapped
-back, leaves every variable, gradient, trust region, random start and stopping test the same, so the path and the result
-change only by round-off (tests/test_tune_hinfstruct_scaling.py, benchmarks/bench_hinf_scaling.py); where a start creeps
-until its iteration budget runs out, round-off can still grow into another end point, as it can between CPUs
-(docs/hinfstruct-units.md). The stopping tests are relative to gamma and to the iterate's size (:func:`relative_slope`),
-so they do not depend on a constant factor of the performance channels either. Random starts are random controllers in
-those variables whose rms size is drawn log-uniformly over the loop gains at which the normalised ``P22`` crosses 1 in
-the band of the plant's modes (at least three decades, up to 1000 units: :func:`_variable_scale`), each made stabilising
-by phase one, and run through the project's executor. By default :func:`hinfstruct` runs several starts and then
-basin hopping from the best end point (:func:`_hop`): where two runs split at one decision into different local minima,
-the hops take both to the lower one, so the default result is the same in any units beyond the single-path round-off
-(benchmarks/bench_hinf_scaling.py). Where the plant makes loop gains plausible beyond the random starts' largest size,
-a gain-scale sweep (:func:`_scale_sweep`) runs between the starts and the hops: size by size on a log grid over those
-decades, seeded directions (rank one on static gains) screened by their exact norm and the best minimised on that
-size's sphere, then a few starts from the lowest, for optima that stabilise only in a thin band of gain scale. The
-cascade tuner calls :func:`run_starts` and neither sweeps nor hops.
+Units. hinfstruct searches on the plant in its own units (:class:`_PlantUnits`), never in the caller's units, a
+fixed size or the start's: control ``i`` measured in ``gu_i`` and measurement ``j`` in ``gy_j``, sizes fitted to the
+log-magnitude of ``P22`` at the frequencies where the open-loop performance is large (:func:`_plant_units`), so that a
+parameter that carries the units of the plant's signals (static gains, PID gains, B, C, D of state-space blocks,
+:meth:`rotorlab.tune.blocks.Block.io_exponents`) is measured in ``1 / (gu_i gy_j)``; time constants and the like keep
+a unit of their own. The entries of that plant which the units touch are rounded to :data:`SNAP_BITS` significant bits.
+Rescaling any control or measurement of P by a positive factor, with the controller mapped back, then gives the same
+plant, start and variables bit for bit, not merely to round-off: the whole seeded search (starts, sweep, hops, stopping
+tests) runs the same arithmetic and ends at the same controller, mapped back to the caller's units
+(tests/test_tune_hinfstruct_scaling.py checks every problem of benchmarks/bench_hinf_scaling.py in six units each
+way). Without the rounding, round-off alone sent HE3's default search to end points up to 2.4 % apart. Between CPUs, whose
+SIMD kernels round differently, a run can still split at one decision into another local minimum
+(docs/hinfstruct-units.md). The stopping tests are relative to gamma and to the iterate's size
+(:func:`relative_slope`), so they do not depend on a constant factor of the performance channels either. Random
+starts are random controllers in those variables whose rms size is drawn log-uniformly over the loop gains at which
+the normalised ``P22`` crosses 1 in the band of the plant's modes (at least three decades, up to 1000 units:
+:func:`_variable_scale`), each made stabilising by phase one, and run through the project's executor. By default
+:func:`hinfstruct` runs several starts and then basin hopping from the best end point (:func:`_hop`): where two runs
+split at one decision into different local minima, the hops take both on towards the lower one. Where the plant makes
+loop gains plausible beyond the random starts' largest size, a gain-scale sweep (:func:`_scale_sweep`) runs between
+the starts and the hops: size by size on a log grid over those decades, seeded directions (rank one on static gains)
+screened by their exact norm and the best minimised on that size's sphere, then a few starts from the lowest, for
+optima that stabilise only in a thin band of gain scale. The cascade tuner calls :func:`run_starts` on its own
+variables and neither sweeps nor hops.
 
 The same engine, stabilisation phase, starts and executor serve several weighted channels at once (soft
 goals minimised, hard goals kept <= 1 and pole regions as constraints), which is how
@@ -148,6 +151,12 @@ SWEEP_ABOVE = 0.3
 SWEEP_DIRECTIONS = 2000
 SWEEP_REFINE = 3
 SWEEP_STARTS = 4
+# hinfstruct searches on the plant in its own units (:class:`_PlantUnits`), with the entries that carry the units of
+# the controls and measurements rounded to this many significant bits: the same plant written in other units then
+# gives the same numbers rather than numbers a few 1e-16 apart, which a nonsmooth search among many nearby local
+# minima turns into end points up to 2.4 % apart (COMPleib HE3 over 13 rescalings). The rounding moves an entry by at
+# most 6e-8 relative, far below the stopping tolerance, and gamma is recomputed on the caller's plant at the end
+SNAP_BITS = 24
 
 
 class NotStabilisableError(ValueError):
@@ -529,7 +538,7 @@ class _Problem:
     """Shared state of one optimisation: controller structure, channels and stability plants."""
 
     def __init__(self, structure: Structure, channels: Sequence[Channel], stab: Sequence[tuple], free,
-                 scale, stab_margin=1e-6, poles=None, relative_stop=False, start_decades=(-1.5, 1.5)):
+                 scale, stab_margin=1e-6, poles=None, relative_stop=False, start_decades=(-1.5, 1.5), theta0=None):
         self.s, self.channels, self.stab = structure, list(channels), list(stab)
         self.free = np.asarray(free, bool)
         self.scale = np.asarray(scale, float)
@@ -541,9 +550,10 @@ class _Problem:
         self.start_decades = tuple(start_decades)
         # the tangent program keeps the closed-loop eigenvalues this much inside the stability test's own margin:
         # its solutions land on their constraints, where the test would otherwise be decided by round-off (and
-        # a plant written in other units could take another path)
+        # another CPU's kernels could take another path)
         self.qp_margin = stab_margin if relative_stop else 0.0
-        self.theta0 = structure.values
+        # the fixed parameters' values (the structure's own unless given: hinfstruct's are in the plant's units)
+        self.theta0 = structure.values if theta0 is None else np.array(theta0, float)
         self.stab_margin = stab_margin
         self.poles = poles  # (min_decay, min_damping) or None
         self._parts = [_partition(P, nm, nc) for P, nm, nc in self.stab]
@@ -1449,7 +1459,9 @@ class HinfstructResult:
     """Outcome of :func:`hinfstruct`.
 
     ``gamma`` is the closed-loop H-inf norm computed exactly (SLICOT ab13dd via ``rotorlab.lti.hinfnorm``)
-    on the returned controller; ``starts`` holds the verified gamma of every start (inf when a start failed).
+    on the returned controller and the caller's plant; ``starts`` holds the verified gamma of every start (inf when
+    a start failed), ``hops`` and ``sweep`` those of the later runs, all three on the plant in its own units, whose
+    rounded entries (:data:`SNAP_BITS`) put them within about 1e-7 of the same norms on the caller's plant.
     ``slope`` is the relative stationarity of the returned controller (:func:`relative_slope` over the
     gradients of every frequency peak within :data:`SLOPE_BAND` of gamma, in the plant-derived variables):
     the relative decrease of gamma that a step of the gains' own size would give along the best direction, to
@@ -1493,6 +1505,18 @@ def _plant_band(A, dt, npoints=64):
     return np.logspace(np.log10(lo), np.log10(hi), npoints)
 
 
+def _band_response(P):
+    """The plant's frequency response over :func:`_plant_band` (at ``e^{jw dt}`` when discrete), ``(nw, ny, nu)``."""
+    A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
+    dt = float(P.dt) if lti.is_discrete(P) else 0.0
+    w = _plant_band(A, dt)
+    if not A.shape[0]:
+        return np.broadcast_to(D, (w.size,) + D.shape).astype(complex)
+    pts = np.exp(1j * w * dt) if dt else 1j * w
+    return C @ np.linalg.solve(pts[:, None, None] * np.eye(A.shape[0]) - A,
+                               np.broadcast_to(B, (w.size,) + B.shape)) + D
+
+
 def _plant_units(P, nmeas, ncon):
     """Sizes of the plant's controls and measurements, from ``P22`` (u -> y) at the frequencies that matter.
 
@@ -1505,22 +1529,13 @@ def _plant_units(P, nmeas, ncon):
     normalised, so they do not depend on a common factor of w or z either. The split between ``gu`` and ``gy`` (a
     controller state's own units) is fixed by the mean of ``log gu`` equal to the mean log column norm of ``B2``. Every
     step is equivariant: rescaling control ``i`` by ``a_i`` and measurement ``j`` by ``c_j`` multiplies ``gu_i`` by
-    ``a_i`` and ``gy_j`` by ``c_j``, to round-off. Returns ``(log gu, log gy, sigma)`` with ``sigma`` the largest
-    singular value of the normalised ``diag(1/gy) P22 diag(1/gu)`` at each band frequency."""
-    A, B, C, D = (np.asarray(M, float) for M in (P.A, P.B, P.C, P.D))
-    nz, nw = C.shape[0] - nmeas, B.shape[1] - ncon
-    B2 = B[:, nw:]
-    dt = float(P.dt) if lti.is_discrete(P) else 0.0
-    w = _plant_band(A, dt)
-    if A.shape[0]:
-        pts = np.exp(1j * w * dt) if dt else 1j * w
-        Pf = C @ np.linalg.solve(pts[:, None, None] * np.eye(A.shape[0]) - A,
-                                 np.broadcast_to(B, (w.size,) + B.shape)) + D
-    else:
-        Pf = np.broadcast_to(D, (w.size,) + D.shape).astype(complex)
+    ``a_i`` and ``gy_j`` by ``c_j``, to round-off. Returns ``(log gu, log gy)``."""
+    B2 = np.asarray(P.B, float)[:, P.ninputs - ncon:]
+    nz, nw = P.noutputs - nmeas, P.ninputs - ncon
+    Pf = _band_response(P)
     G = Pf[:, nz:, nw:]
     s11 = np.linalg.svd(Pf[:, :nz, :nw], compute_uv=False)[:, 0]
-    wt = s11 / s11.sum() if np.isfinite(s11.sum()) and s11.sum() > 0 else np.full(w.size, 1.0 / w.size)
+    wt = s11 / s11.sum() if np.isfinite(s11.sum()) and s11.sum() > 0 else np.full(s11.size, 1.0 / s11.size)
     mag = np.abs(G)                                                      # (nf, ny, nu)
     rms = np.sqrt(np.mean(mag**2, axis=0))
     # structurally zero entries (no path u_i -> y_j) hold only round-off; a zero of a real entry on the grid
@@ -1539,44 +1554,93 @@ def _plant_units(P, nmeas, ncon):
         has = bn > 0
         t = float(np.mean(np.log(bn[has]) - lgu[has])) if has.any() else 0.0
         lgu, lgy = lgu + t, lgy - t
-    Gs = G * np.exp(-lgy)[None, :, None] * np.exp(-lgu)[None, None, :]
-    sigma = np.linalg.svd(Gs, compute_uv=False)[:, 0] if min(Gs.shape[1:]) else np.ones(w.size)
-    return lgu, lgy, sigma
+    return lgu, lgy
 
 
-def _variable_scale(S: Structure, P, nmeas, ncon, theta0, free):
-    """Scale of each free parameter (the optimiser's variables are ``theta / scale``) and the log10 range of
-    the random starts' rms size in those variables.
+def _snap(x):
+    """``x`` rounded to :data:`SNAP_BITS` significant bits (signs, zeros and infinities kept)."""
+    m, e = np.frexp(np.asarray(x, float))
+    return np.ldexp(np.round(m * 2.0**SNAP_BITS) / 2.0**SNAP_BITS, e)
 
-    Parameters that carry the units of the plant's signals (:meth:`Structure.io_exponents`: gains of PIDs,
-    static gains, B, C, D of state-space blocks) get the natural unit of :func:`_plant_units`, which does not
-    depend on the start or on the units the plant is written in; the others (time constants, set-point
-    weights, A of state-space blocks) keep a unit of their own start value, at least a tenth of the largest
-    of them and of 1. The random starts' rms size spans the loop gains from where the normalised ``P22`` first
-    crosses 1 in the band of the plant's modes (its 90 % quantile; within 0.1..10 units) up to where it has
-    crossed 1 almost everywhere (10 % quantile), at least three decades and at most 1000 units: smaller
-    controllers act like none, which the start from the blocks' values (zero by default) already covers, and
-    the optimum of a demanding performance channel lies at loop gains well above one."""
-    lgu, lgy, sigma = _plant_units(P, nmeas, ncon)
-    eu, ey = S.io_exponents()
-    io = np.any(eu != 0, axis=1) | np.any(ey != 0, axis=1)
+
+class _PlantUnits:
+    """The plant in its own units, and the controller's parameters mapped to and from them.
+
+    Control ``i`` is measured in units of ``gu_i`` and measurement ``j`` in units of ``gy_j`` (:func:`_plant_units`):
+    the columns of ``B2`` and of ``D`` on the controls divided by ``gu``, the rows of ``C2`` and of ``D`` on the
+    measurements by ``gy``, and those entries rounded to :data:`SNAP_BITS` significant bits (``P``). A parameter that
+    carries the units of the plant's signals (:meth:`rotorlab.tune.blocks.Structure.io_exponents`) is then measured in
+    ``unit = 1 / prod(gu**eu gy**ey)``; the others (time constants, A of state-space blocks) keep their values. The
+    same plant written in other units, with its controller mapped back, gives the same ``P`` and the same parameters
+    in these units bit for bit (unless an entry lies within round-off of a rounding boundary: below 1e-6 per entry):
+    the whole search then runs the same arithmetic. ``sigma`` is the largest singular value of this plant's ``P22``
+    over :func:`_plant_band`."""
+
+    def __init__(self, S: Structure, P, nmeas, ncon):
+        lgu, lgy = _plant_units(P, nmeas, ncon)
+        A, B, C, D = (np.array(M, float) for M in (P.A, P.B, P.C, P.D))
+        nz, nw = C.shape[0] - nmeas, B.shape[1] - ncon
+        bs, cs = np.r_[np.ones(nw), np.exp(-lgu)], np.r_[np.ones(nz), np.exp(-lgy)]
+        B, C, D = B * bs, cs[:, None] * C, cs[:, None] * D * bs
+        B[:, nw:], C[nz:] = _snap(B[:, nw:]), _snap(C[nz:])
+        D[nz:], D[:, nw:] = _snap(D[nz:]), _snap(D[:, nw:])
+        self.P = ct.ss(A, B, C, D, P.dt)
+        eu, ey = S.io_exponents()
+        self.io = np.any(eu != 0, axis=1) | np.any(ey != 0, axis=1)
+        self.unit = np.where(self.io, np.exp(-(eu @ lgu + ey @ lgy)), 1.0)
+        G = _band_response(self.P)[:, nz:, nw:]
+        self.sigma = np.linalg.svd(G, compute_uv=False)[:, 0] if min(G.shape[1:]) else np.ones(G.shape[0])
+
+    def inward(self, theta):
+        """Parameters (or bounds) in the plant's own units, those that carry the signals' units snapped."""
+        th = np.array(theta, float)
+        th[self.io] = _snap(th[self.io] / self.unit[self.io])
+        return th
+
+    def outward(self, theta):
+        """Parameters in the units of the caller's plant."""
+        return np.asarray(theta, float) * self.unit
+
+
+def _variable_scale(units: _PlantUnits, theta0, free):
+    """Scale of each free parameter in the plant's own units (the optimiser's variables are ``theta / scale``) and
+    the log10 range of the random starts' rms size in those variables.
+
+    Parameters that carry the units of the plant's signals are already in their natural unit there (scale 1);
+    the others (time constants, set-point weights, A of state-space blocks) keep a unit of their own start value,
+    at least a tenth of the largest of them and of 1. The random starts' rms size spans the loop gains from where
+    the normalised ``P22`` first crosses 1 in the band of the plant's modes (its 90 % quantile; within 0.1..10
+    units) up to where it has crossed 1 almost everywhere (10 % quantile), at least three decades and at most 1000
+    units: smaller controllers act like none, which the start from the blocks' values (zero by default) already
+    covers, and the optimum of a demanding performance channel lies at loop gains well above one."""
     th = np.abs(np.asarray(theta0, float))
-    other = free & ~io
+    other = free & ~units.io
     ref = max(float(th[other].max()) if other.any() else 0.0, 1.0)
-    scale = np.where(io, np.exp(-(eu @ lgu + ey @ lgy)), np.maximum(th, 0.1 * ref))
-    q10, q90 = np.quantile(np.log10(np.maximum(sigma, 1e-300)), [0.1, 0.9])
+    scale = np.where(units.io, 1.0, np.maximum(th, 0.1 * ref))
+    q10, q90 = np.quantile(np.log10(np.maximum(units.sigma, 1e-300)), [0.1, 0.9])
     lo = float(np.clip(-q90, -1.0, 1.0))
     return scale[free], (lo, float(np.clip(-q10, lo + 3.0, START_TOP)))
 
 
-def _sweep_decades(P, nmeas, ncon, force=False):
+def _hinf_problem(S: Structure, P, nmeas, ncon, theta0, free):
+    """The problem :func:`hinfstruct` solves: one exact H-inf channel on the plant in its own units, in the variables
+    of :func:`_variable_scale`, with the structure's parameters ``theta0`` (the caller's units) as its start and
+    fixed values. Returns the :class:`_Problem` and the :class:`_PlantUnits` that map parameters back."""
+    units = _PlantUnits(S, P, nmeas, ncon)
+    th0 = units.inward(theta0)
+    scale, decades = _variable_scale(units, th0, free)
+    ch = Channel(units.P, nmeas, ncon, name="hinf", exact_peak=True)
+    return _Problem(S, [ch], [(units.P, nmeas, ncon)], free, scale, relative_stop=True, start_decades=decades,
+                    theta0=th0), units
+
+
+def _sweep_decades(sigma, force=False):
     """log10 range of the gain-scale sweep's rms sizes in the plant-derived variables, or None: where the loop
-    gains at which the normalised ``P22`` has crossed 1 almost everywhere in the band of the plant's modes (the
-    10 % quantile of :func:`_variable_scale`) lie beyond the random starts' largest size (``10**START_TOP`` units),
-    the sweep covers the sizes from :data:`SWEEP_BELOW` decades under that cap to :data:`SWEEP_ABOVE` decades over
-    those gains (``force``: also where they do not, from :data:`SWEEP_BELOW` decades under them). Like the units,
-    it is the same in any units of the plant's signals."""
-    sigma = _plant_units(P, nmeas, ncon)[2]
+    gains at which the normalised ``P22`` (``sigma``: :attr:`_PlantUnits.sigma`) has crossed 1 almost everywhere in
+    the band of the plant's modes (the 10 % quantile of :func:`_variable_scale`) lie beyond the random starts'
+    largest size (``10**START_TOP`` units), the sweep covers the sizes from :data:`SWEEP_BELOW` decades under that
+    cap to :data:`SWEEP_ABOVE` decades over those gains (``force``: also where they do not, from
+    :data:`SWEEP_BELOW` decades under them). Like the units, it is the same in any units of the plant's signals."""
     top = -float(np.quantile(np.log10(np.maximum(sigma, 1e-300)), 0.1))
     if not (top > START_TOP or force):
         return None
@@ -1604,10 +1668,11 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int | None = Non
     Each start runs the stabilisation phase (spectral abscissa minimised by nonsmooth BFGS) and then the
     hybrid optimiser (nonsmooth BFGS, tangent-program polishing; see the module docstring); where the plant calls
     for it, a gain-scale sweep (``sweep``) adds starts at high loop gains; then rounds of basin hopping from the
-    best end point run the same two phases from random points around it. Starts, sweep and hops are seeded and
-    drawn in the plant-derived variables, so they are the same in any units of the plant's signals, and they run
-    through ``executor``. Their cost is ``starts`` plus ``hops`` per round (at least two rounds) times that of
-    one start, plus the sweep's screening and its :data:`SWEEP_STARTS` starts where it runs.
+    best end point run the same two phases from random points around it. All of it runs on the plant in its own
+    units (module docstring, "Units"), seeded, so the same plant written in other units of its controls and
+    measurements takes the same path to the same controller; the runs go through ``executor``. Their cost is
+    ``starts`` plus ``hops`` per round (at least two rounds) times that of one start, plus the sweep's screening
+    and its :data:`SWEEP_STARTS` starts where it runs.
 
     Parameters
     ----------
@@ -1624,8 +1689,8 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int | None = Non
         docstring, "Units"), around the start's size when that is larger. Default :data:`DEFAULT_STARTS`.
     hops : int, optional
         Runs per round of basin hopping from the best end point (:func:`_hop`; 0: none). The rounds end when
-        two in a row gain less than 0.1 % (at most six rounds). Two runs that agree to round-off (the plant in
-        other units, on another CPU) can split at one accept/reject decision into local minima a few percent
+        two in a row gain less than 0.1 % (at most six rounds). Two runs that agree to round-off (on CPUs whose
+        SIMD kernels round differently) can split at one accept/reject decision into local minima a few percent
         apart; hopping takes both on to the lower one. Default :data:`DEFAULT_HOPS`.
     seed : int or numpy.random.Generator seed
     sweep : bool, optional
@@ -1712,35 +1777,37 @@ def hinfstruct(P, controller, nmeas: int, ncon: int, *, starts: int | None = Non
     free = ~fixed
     if not free.any():
         raise ValueError("every controller parameter is fixed: nothing to tune")
-    scale, decades = _variable_scale(S, P, nmeas, ncon, theta0, free)
-    ch = Channel(P, nmeas, ncon, name="hinf", exact_peak=True)
-    prob = _Problem(S, [ch], [(P, nmeas, ncon)], free, scale, relative_stop=True, start_decades=decades)
+    prob, units = _hinf_problem(S, P, nmeas, ncon, theta0, free)
+    th0, lo_n, hi_n = prob.theta0, units.inward(lower), units.inward(upper)
     starts = DEFAULT_STARTS if starts is None else int(starts)
     hops = DEFAULT_HOPS if hops is None else int(hops)
-    results = run_starts(prob, theta0, lower, upper, starts=starts, seed=seed, n_jobs=n_jobs, executor=executor,
+    results = run_starts(prob, th0, lo_n, hi_n, starts=starts, seed=seed, n_jobs=n_jobs, executor=executor,
                          max_iter=max_iter, tol=tol, time_limit_s=time_limit_s, progress=progress)
-    verify = _Verifier(P, nmeas, ncon, S)
+    verify = _Verifier(units.P, nmeas, ncon, S)
     verified = [verify(r) for r in results]
     gammas = [v[0] for v in verified]
     if not np.isfinite(min(gammas)):
         _raise_unstabilised([r for r in results if isinstance(r, StartFailure)], len(results))
     best = verified[int(np.argmin(gammas))]
     swept, sweep_cpu_s = [], 0.0
-    sweep_range = _sweep_decades(P, nmeas, ncon, force=bool(sweep)) if sweep is not False else None
+    sweep_range = _sweep_decades(units.sigma, force=bool(sweep)) if sweep is not False else None
     if sweep_range is not None:
-        swept, sweep_cpu_s = _scale_sweep(prob, sweep_range, lower, upper, verify, seed=seed, n_jobs=n_jobs,
+        swept, sweep_cpu_s = _scale_sweep(prob, sweep_range, lo_n, hi_n, verify, seed=seed, n_jobs=n_jobs,
                                           executor=executor, max_iter=max_iter, tol=tol, time_limit_s=time_limit_s)
         best = min([best] + swept, key=lambda v: v[0])
     hopped = []
     if hops > 0:
-        best, hopped = _hop(prob, best, lower, upper, verify, hops=hops, seed=seed, n_jobs=n_jobs,
+        best, hopped = _hop(prob, best, lo_n, hi_n, verify, hops=hops, seed=seed, n_jobs=n_jobs,
                             executor=executor, max_iter=max_iter, tol=tol, time_limit_s=time_limit_s)
-    g, th, hist, wpk, pred, _ = best
+    _, th_n, hist, _, pred, _ = best
+    th = np.where(fixed, theta0, np.clip(units.outward(th_n), lower, upper))
     S.set_values(th)
+    K = S.ss(th)
+    g, wpk = lti.hinfnorm(closed_loop(P, nmeas, ncon, K))
     runs = verified + swept + hopped
-    return HinfstructResult(gamma=float(g), controller=S.ss(th), params=dict(zip(names, map(float, th))),
+    return HinfstructResult(gamma=float(g), controller=K, params=dict(zip(names, map(float, th))),
                             history=list(map(float, hist)), starts=[float(x) for x in gammas], success=True,
-                            structure=S, w_peak=float(wpk), stationarity=float(pred), slope=_slope(prob, th),
+                            structure=S, w_peak=float(wpk), stationarity=float(pred), slope=_slope(prob, th_n),
                             start_times_s=[float(v[5][0]) for v in verified],
                             start_cpu_s=[float(v[5][1]) for v in verified],
                             hops=[float(v[0]) for v in hopped], sweep=[float(v[0]) for v in swept],
@@ -1768,11 +1835,11 @@ def _hop(prob: _Problem, best, lower, upper, verify, *, hops, seed, n_jobs, exec
     variables; a round's best replaces it when lower by more than ``tol`` relative, and the hopping ends after
     :data:`HOP_PATIENCE` rounds in a row that gain less than :data:`HOP_GAIN` (or :data:`HOP_ROUNDS` rounds).
 
-    Why: two runs that agree to round-off (the same problem in other units, on another CPU, with another number
-    of BLAS threads) can split at one accept/reject decision and end in different local minima a few percent
-    apart; hopping from either end point reaches the lower of the nearby minima, so the result no longer hangs
-    on that decision. The perturbations are drawn in the plant-derived variables from a seed of their own, so
-    they are the same numbers in any units. Returns the new best and every hop's verified entry."""
+    Why: two runs that agree to round-off (on another CPU, with another number of BLAS threads) can split at one
+    accept/reject decision and end in different local minima a few percent apart; hopping from either end point
+    reaches the lower of the nearby minima, so the result no longer hangs on that decision. The perturbations are
+    drawn in the plant-derived variables from a seed of their own. Returns the new best and every hop's verified
+    entry."""
     rng = np.random.default_rng(task_seeds(seed, 2)[1])
     hopped = []
     idle = 0
