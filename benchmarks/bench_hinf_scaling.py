@@ -3,7 +3,8 @@ benchmarks/hinf_problems.py and the COMPleib problems of benchmarks/compleib.py)
 (``hinfstruct(P, K, ny, nu)``: several starts, then basin hopping from the best) as written and with its controls,
 then its measurements, in units ``f`` times larger for ``f`` in {1e-3, 1e-2, 0.1, 10, 100, 1e3} (:func:`hinf_problems.rescaled`). The optimum's
 gamma does not change with units; the table gives the largest relative deviation of the 12 rescaled runs'
-gamma from the unscaled one, and the CPU time per run (starts and hops together). The acceptance bar is 0.5 %.
+gamma from the unscaled one, how many took the same path (every start's, sweep start's and hop's gamma equal to
+the unscaled run's), and the CPU time per run (starts and hops together). The acceptance bar is 0.5 %.
 ``--starts 1 --hops 0`` measures one plain start instead (the engine's arithmetic alone).
 
 Run: ``python benchmarks/bench_hinf_scaling.py [--problems AC15 chain40] [--jobs 1] [--executor dask://HOST:PORT]``.
@@ -52,7 +53,7 @@ def _solve(job):
     elif side == "y":
         prob = rescaled(prob, 1.0, factor)
     r = hinfstruct(prob.P, prob.controller, prob.nmeas, prob.ncon, **kw)
-    return r.gamma, r.slope, r.total_cpu_s
+    return r.gamma, r.slope, r.total_cpu_s, (r.starts, r.sweep, r.hops)
 
 
 def main():
@@ -80,16 +81,18 @@ def main():
         dev = [r[0] / g0 - 1 for r in res[1:]]
         worst = max(dev, key=abs)
         secs = [r[2] for r in res]
-        rows.append((name, g0, worst, sum(abs(d) <= 5e-3 for d in dev), len(dev), np.median(secs), res[0][1]))
+        # the same path: every start's, sweep start's and hop's gamma equal to the unscaled run's
+        same = sum(r[3] == res[0][3] for r in res[1:])
+        rows.append((name, g0, worst, sum(abs(d) <= 5e-3 for d in dev), len(dev), np.median(secs), res[0][1], same))
         print(f"{name}: gamma {g0:.6g} (slope {res[0][1]:.2g}); rescaled u: "
               f"{[f'{r[0]:.6g}' for r in res[1:1 + nf]]}; y: {[f'{r[0]:.6g}' for r in res[1 + nf:]]}; worst "
-              f"{100 * worst:+.3f} %; median {np.median(secs):.1f} CPU s/run", flush=True)
+              f"{worst:+.1e}; same path {same}/{per - 1}; median {np.median(secs):.1f} CPU s/run", flush=True)
     print(f"load average at the end: {os.getloadavg()[0]:.1f}")
     print(f"\n| problem | gamma (unscaled) | slope | worst deviation, {per - 1} rescaled runs | within 0.5 % "
-          "| median CPU s/run |")
-    print("|---|---|---|---|---|---|")
-    for name, g0, worst, ok, n, sec, sl in rows:
-        print(f"| {name} | {g0:.5g} | {sl:.1e} | {100 * worst:+.3f} % | {ok}/{n} | {sec:.1f} |")
+          "| same path | median CPU s/run |")
+    print("|---|---|---|---|---|---|---|")
+    for name, g0, worst, ok, n, sec, sl, same in rows:
+        print(f"| {name} | {g0:.5g} | {sl:.1e} | {worst:+.1e} | {ok}/{n} | {same}/{n} | {sec:.1f} |")
 
 
 if __name__ == "__main__":
