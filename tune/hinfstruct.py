@@ -1530,8 +1530,8 @@ def _plant_units(P, nmeas, ncon):
     controller state's own units) is fixed by the mean of ``log gu`` equal to the mean log column norm of ``B2``. Every
     step is equivariant: rescaling control ``i`` by ``a_i`` and measurement ``j`` by ``c_j`` multiplies ``gu_i`` by
     ``a_i`` and ``gy_j`` by ``c_j``, to round-off. Returns ``(log gu, log gy)``."""
-    B2 = np.asarray(P.B, float)[:, P.ninputs - ncon:]
     nz, nw = P.noutputs - nmeas, P.ninputs - ncon
+    B2 = np.asarray(P.B, float)[:, nw:]
     Pf = _band_response(P)
     G = Pf[:, nz:, nw:]
     s11 = np.linalg.svd(Pf[:, :nz, :nw], compute_uv=False)[:, 0]
@@ -1588,6 +1588,7 @@ class _PlantUnits:
         eu, ey = S.io_exponents()
         self.io = np.any(eu != 0, axis=1) | np.any(ey != 0, axis=1)
         self.unit = np.where(self.io, np.exp(-(eu @ lgu + ey @ lgy)), 1.0)
+        # from the rounded plant, not from _plant_units' response of P rescaled: the same numbers in any units
         G = _band_response(self.P)[:, nz:, nw:]
         self.sigma = np.linalg.svd(G, compute_uv=False)[:, 0] if min(G.shape[1:]) else np.ones(G.shape[0])
 
