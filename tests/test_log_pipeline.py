@@ -94,6 +94,11 @@ def test_twin_predicts_the_held_out_flight(px4_run):
     for axis, p in pred.items():
         assert p["twin_vaf_pct"] > 95.0, axis
         assert p["twin_vaf_pct"] >= p["closed_loop_vaf_pct"] - 1.0, axis
+    # roll and pitch were refined on the flight's identification windows, each pair of rotors on its own axis
+    fit = json.loads((out / "stages" / "calibrate" / "stage.json").read_text())["result"]["flight_fit"]
+    assert set(fit["ident_vaf_after_pct"]) == {"roll", "pitch"}
+    for axis, after in fit["ident_vaf_after_pct"].items():
+        assert after >= fit["ident_vaf_before_pct"][axis], axis
 
 
 def test_tuned_parameters_beat_the_logs_in_the_validation_scenarios(px4_run):

@@ -212,6 +212,24 @@ def _residual(axis, w, twin, target) -> AxisResidual:
     return AxisResidual(axis, np.asarray(w), 20.0 / math.log(10.0) * r.real, np.degrees(r.imag))
 
 
+def axis_residuals(v: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, scene: str = "gimbal") -> dict:
+    """The residual twin / target per axis of ``targets`` (as :func:`calibrate_axes` takes them) at ``w_rad_s``:
+    axis -> :class:`AxisResidual`, of the twin's exact linearisation (delays in its physics steps).
+
+    Examples
+    --------
+    >>> import control as ct
+    >>> from rotorlab.vehicles import load_vehicle
+    >>> r = axis_residuals(load_vehicle("x500"), {"roll": ct.tf([93.3], [0.02, 1.0, 0.0])})
+    >>> r["roll"].max_db > 0.0
+    True
+    """
+    w = np.asarray(w_rad_s, dtype=float)
+    axes = [a for a in AXES if a in targets]
+    twin = twin_response(v, axes, w, scene=scene)
+    return {a: _residual(a, w, twin[a], _target_response(targets[a], w)) for a in axes}
+
+
 def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, scene: str = "gimbal",
                    yaw_rotor: bool | None = None, fit_motors: bool = True) -> Calibration:
     """Fit the twin's inertia, motor poles and delays to per-axis rate models.

@@ -266,6 +266,13 @@ def _evidence(ident, cal, tune, val) -> list:
             s = cal["residual_start"][axis]
             out.append(f"| {axis} | {r['max_db']:.2f} | {r['max_deg']:.1f} | {s['max_db']:.2f} dB, {s['max_deg']:.1f} deg |")
         out += [""] + [f"- {x}" for x in cal["at_bounds"]] + [""]
+        flight = cal.get("flight_fit")
+        if flight:
+            b, a = flight["ident_vaf_before_pct"], flight["ident_vaf_after_pct"]
+            out += ["Then refined on the flight (inertia, motor lag, delay in physics steps; the twin closed with the "
+                    "log's controller, free-run VAF on the identification windows, the held-out part unused): "
+                    + ", ".join(f"{x} {b[x]:.2f} -> {a[x]:.2f} %" for x in a) + "."]
+            out += [f"- {x}" for x in flight["notes"]] + [""]
     if "skipped" not in tune:
         out += ["### Tuning goals (value <= 1 meets a goal)", ""]
         for axis, r in tune["results"].items():
