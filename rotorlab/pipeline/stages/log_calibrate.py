@@ -8,7 +8,9 @@ the twin's from its axis command (%) to deg/s, with a normalised torque of 1 a d
 ArduPilot's mixer scale the torque by the airframe's geometry, which the twin does not model, so the torque gain
 per inertia the log shows can be far from the starting twin's: where an axis's gain at :data:`W_START_RAD_S`
 differs by more than :data:`MAX_START_RATIO`, that axis's inertia is first scaled to match it (the fit's inertia
-range is a factor of 3 around its start), and the report says so.
+range is a factor of 3 around its start), and the report says so. The roll and pitch moments, the motor lag and
+the delay are then refined on the flight's identification windows (:func:`refine_on_flight`), where the axes'
+models disagree on the motors they share, and yaw is fitted again with the refined motors held.
 
 The check of the calibration against the flight: per axis, the calibrated twin's linearisation (gimbal scene) is
 closed with the log's own rate controller exactly as the identification closes its plant through the controller
@@ -109,7 +111,15 @@ class FlightLoop:
 def flight_loop(log, axis: str, dt_s: float, angle: tuple | None = None) -> FlightLoop:
     """The loop of ``axis`` in ``log`` at the record period ``dt_s``: the log's rate controller driven by the
     logged rate set-point, or with ``angle = (angle_p, ff)`` the angle and rate controllers
-    (:func:`rotorlab.ident.flightlogs.identify.angle_cascade`) driven by the attitude set-point."""
+    (:func:`rotorlab.ident.flightlogs.identify.angle_cascade`) driven by the attitude set-point.
+
+    Examples
+    --------
+    >>> log = read_flight_log("flight.ulg")  # doctest: +SKIP
+    >>> loop = flight_loop(log, "roll", 0.004)  # doctest: +SKIP
+    >>> loop.u_name, loop.substeps  # doctest: +SKIP
+    ('rate_sp', 1)
+    """
     C = autopilot_controller(log, axis)
     sub = loop_substeps(C, dt_s)
     if angle is None:
@@ -125,7 +135,13 @@ def flight_loop(log, axis: str, dt_s: float, angle: tuple | None = None) -> Flig
 def twin_prediction(loop: FlightLoop, v, windows) -> tuple[float, list]:
     """(pooled free-run VAF %, [(t_s, rate, predicted rate)] per window) of the twin ``v`` (linearised, gimbal
     scene) closed with the log's controller in ``loop`` on ``windows`` (``Window`` list), each window's initial
-    state estimated (:func:`rotorlab.ident.flightlogs.identify.holdout_prediction`)."""
+    state estimated (:func:`rotorlab.ident.flightlogs.identify.holdout_prediction`).
+
+    Examples
+    --------
+    >>> from rotorlab.ident.flightlogs.windows import Window
+    >>> vaf_pct, pred = twin_prediction(loop, load_vehicle("x500"), [Window(20.0, 40.0, "held out")])  # doctest: +SKIP
+    """
     Gc, delay_s = twin_plant_continuous(v, loop.axis)
     dt = loop.rec.dt / loop.substeps
     if loop.u_name == "rate_sp":
