@@ -71,3 +71,19 @@ def test_refinement_reports_the_twins_predictions(x500_flight, refined):
         loop, windows = x500_flight[1][axis]
         assert res.vaf_before[axis] == twin_prediction(loop, start, windows)[0]
         assert res.vaf_after[axis] == twin_prediction(loop, res.vehicle, windows)[0]
+
+
+def test_refinement_takes_the_identifications_sample_budget():
+    """The pipeline refines on the first identification windows holding at most the identification's MAX_FIT_SAMPLES
+    samples together (the last one cut, a remainder under MIN_SAMPLES dropped), so a long log costs no more than a
+    short one."""
+    from rotorlab.ident.flightlogs.identify import MAX_FIT_SAMPLES, MIN_SAMPLES
+    from rotorlab.pipeline.stages.log_calibrate import _fit_windows
+
+    dt = 0.004
+    budget = MAX_FIT_SAMPLES * dt
+    assert [(w.start_s, w.stop_s) for w in _fit_windows([(0.0, 8.0), (10.0, 12.0)], dt)] == [(0.0, 8.0), (10.0, 12.0)]
+    got = _fit_windows([(0.0, budget - 1.0), (30.0, 40.0), (50.0, 60.0)], dt)
+    assert [(w.start_s, w.stop_s) for w in got] == [(0.0, budget - 1.0), (30.0, 31.0)]
+    short = _fit_windows([(0.0, budget - 0.5 * MIN_SAMPLES * dt), (30.0, 40.0)], dt)
+    assert len(short) == 1

@@ -9,8 +9,9 @@ ArduPilot's mixer scale the torque by the airframe's geometry, which the twin do
 per inertia the log shows can be far from the starting twin's: where an axis's gain at :data:`W_START_RAD_S`
 differs by more than :data:`MAX_START_RATIO`, that axis's inertia is first scaled to match it (the fit's inertia
 range is a factor of 3 around its start), and the report says so. The roll and pitch moments, the motor lag and
-the delay are then refined on the flight's identification windows (:func:`refine_on_flight`), where the axes'
-models disagree on the motors they share, and yaw is fitted again with the refined motors held.
+the delay are then refined on the flight's identification windows (:func:`refine_on_flight`; at most
+``MAX_FIT_SAMPLES`` samples, the identification's own budget), where the axes' models disagree on the motors they
+share, and yaw is fitted again with the refined motors held.
 
 The check of the calibration against the flight: per axis, the calibrated twin's linearisation (gimbal scene) is
 closed with the log's own rate controller exactly as the identification closes its plant through the controller
@@ -30,7 +31,14 @@ import scipy.optimize as so
 
 from rotorlab import lti
 from rotorlab.ident.flightlogs import read_flight_log
-from rotorlab.ident.flightlogs.identify import angle_cascade, controller_at, holdout_prediction, loop_substeps
+from rotorlab.ident.flightlogs.identify import (
+    MAX_FIT_SAMPLES,
+    MIN_SAMPLES,
+    angle_cascade,
+    controller_at,
+    holdout_prediction,
+    loop_substeps,
+)
 from rotorlab.ident.flightlogs.run import angle_record, autopilot_controller, autopilot_gyro_filter
 from rotorlab.ident.flightlogs.windows import Window
 from rotorlab.ident.greybox import _closed_loop, lift_interpolated
@@ -159,6 +167,19 @@ def twin_prediction(loop: FlightLoop, v, windows) -> tuple[float, list]:
 
 def _windows(spans, reason: str) -> list:
     return [Window(float(a), float(b), reason) for a, b in spans]
+
+
+def _fit_windows(spans, dt_s: float) -> list:
+    """The first identification windows holding at most ``MAX_FIT_SAMPLES`` samples of period ``dt_s`` together
+    (the last one cut), the identification's own budget for a fit: a long log costs no more than a short one."""
+    out, left_s = [], MAX_FIT_SAMPLES * dt_s
+    for a, b in spans:
+        if left_s < MIN_SAMPLES * dt_s:
+            break
+        stop = min(float(b), float(a) + left_s)
+        out.append(Window(float(a), stop, "identification"))
+        left_s -= stop - float(a)
+    return out
 
 
 def twin_holdout_vaf(log, v, axis: str, dt_s: float, holdout, angle: tuple | None = None) -> float:
@@ -343,7 +364,7 @@ def run(ctx: StageContext) -> dict:
     log = read_flight_log(ctx.opts.log)
     pairs = {axis: _pair(ident["axes"][axis]) for axis in targets}
     # the tilt axes' shared motors compromised on the flight itself (refine_on_flight); yaw borrows the motors
-    loops = {axis: (flight_loop(log, axis, cl["dt_s"], angle), _windows(cl["ident"], "identification"))
+    loops = {axis: (flight_loop(log, axis, cl["dt_s"], angle), _fit_windows(cl["ident"], cl["dt_s"]))
              for axis, (cl, _, angle) in pairs.items() if axis != "yaw"}
     refined = refine_on_flight(cal.vehicle, loops) if loops else None
     if refined is not None and refined.vehicle != cal.vehicle:
