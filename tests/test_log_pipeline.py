@@ -53,6 +53,8 @@ def test_log_pipeline_writes_report_and_parameter_file(px4_run):
     report = (out / "report" / "report.md").read_text()
     # the pilot's part comes first: the verdict and the per-axis table of the log's against the tuned set
     assert report.index("## Before you fly") < report.index("**Verdict.**") < report.index("## Evidence")
+    # the calibration's evidence: the refinement on the flight and the residual before and after it
+    assert "then refined on the flight" in report and "| axis | max dB | max deg | frequency fit | at the start |" in report
     for axis in AXES:
         assert f"| {axis} | log |" in report and f"| {axis} | tuned |" in report
     summary = json.loads((out / "report" / "summary.json").read_text())

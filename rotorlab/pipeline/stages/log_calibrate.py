@@ -367,6 +367,8 @@ def run(ctx: StageContext) -> dict:
     loops = {axis: (flight_loop(log, axis, cl["dt_s"], angle), _fit_windows(cl["ident"], cl["dt_s"]))
              for axis, (cl, _, angle) in pairs.items() if axis != "yaw"}
     refined = refine_on_flight(cal.vehicle, loops) if loops else None
+    frequency_fit = {"inertia_kgm2": cal.inertia_kgm2, "lag_s": cal.lag_s, "delay_s": cal.delay_s,
+                     "residual": {a: {"max_db": r.max_db, "max_deg": r.max_deg} for a, r in cal.residual.items()}}
     if refined is not None and refined.vehicle != cal.vehicle:
         v_ref = refined.vehicle
         if "yaw" in targets:  # yaw's inertia and rotor terms again, with the refined motors held
@@ -387,7 +389,7 @@ def run(ctx: StageContext) -> dict:
                             "plant_indirect_vaf_pct": ind.get("vaf_holdout_pct")}
     flight = None if refined is None else {
         "ident_vaf_before_pct": refined.vaf_before, "ident_vaf_after_pct": refined.vaf_after,
-        "evaluations": refined.evaluations, "notes": list(refined.notes)}
+        "evaluations": refined.evaluations, "notes": list(refined.notes), "frequency_fit": frequency_fit}
     return jsonable({
         "vehicle": out.name, "start_vehicle": str(source), "axes": list(targets),
         "inertia_kgm2": cal.inertia_kgm2, "lag_s": cal.lag_s, "delay_s": cal.delay_s,

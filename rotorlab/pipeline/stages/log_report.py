@@ -257,22 +257,27 @@ def _evidence(ident, cal, tune, val) -> list:
             out.append(f"| {axis} | {p.get('input', 'rate_sp')} | {_f(p['twin_vaf_pct'], '.1f', ' %')} | "
                        f"{_f(p['closed_loop_vaf_pct'], '.1f', ' %')} ({p['closed_loop_method']}) | "
                        f"{_f(p['plant_indirect_vaf_pct'], '.1f', ' %')} |")
-        out += ["", "### Calibration", "",
-                f"Started from `{cal['start_vehicle']}`; inertia {', '.join(f'{x:.4g}' for x in cal['inertia_kgm2'])} "
-                f"kg m^2, motor lag {', '.join(sorted({f'{x * 1e3:.1f}' for x in cal['lag_s']}))} ms, delay "
-                f"{', '.join(sorted({f'{x * 1e3:.0f}' for x in cal['delay_s']}))} ms. Residual twin / model over "
-                "1-30 rad/s:", "", "| axis | max dB | max deg | at the start |", "|---|---|---|---|"]
-        for axis, r in cal["residual"].items():
-            s = cal["residual_start"][axis]
-            out.append(f"| {axis} | {r['max_db']:.2f} | {r['max_deg']:.1f} | {s['max_db']:.2f} dB, {s['max_deg']:.1f} deg |")
-        out += [""] + [f"- {x}" for x in cal["at_bounds"]] + [""]
         flight = cal.get("flight_fit")
+        refined = ""
         if flight:
-            b, a = flight["ident_vaf_before_pct"], flight["ident_vaf_after_pct"]
-            out += ["Then refined on the flight (inertia, motor lag, delay in physics steps; the twin closed with the "
-                    "log's controller, free-run VAF on the identification windows, the held-out part unused): "
-                    + ", ".join(f"{x} {b[x]:.2f} -> {a[x]:.2f} %" for x in a) + "."]
-            out += [f"- {x}" for x in flight["notes"]] + [""]
+            before, after = flight["ident_vaf_before_pct"], flight["ident_vaf_after_pct"]
+            refined = ("; then refined on the flight (the twin closed with the log's controller, free-run VAF on the "
+                       "identification windows, the held-out part unused: "
+                       + ", ".join(f"{x} {before[x]:.2f} -> {after[x]:.2f} %" for x in after) + ")")
+        out += ["", "### Calibration", "",
+                f"Started from `{cal['start_vehicle']}`, fitted to the identified plants over 1-30 rad/s{refined}. "
+                f"Inertia {', '.join(f'{x:.4g}' for x in cal['inertia_kgm2'])} kg m^2, motor lag "
+                f"{', '.join(sorted({f'{x * 1e3:.1f}' for x in cal['lag_s']}))} ms, delay "
+                f"{', '.join(sorted({f'{x * 1e3:.0f}' for x in cal['delay_s']}))} ms. Residual twin / model over "
+                "1-30 rad/s (the frequency fit's before the refinement on the flight):", "",
+                "| axis | max dB | max deg | frequency fit | at the start |", "|---|---|---|---|---|"]
+        fitted = ((flight or {}).get("frequency_fit") or {}).get("residual") or cal["residual"]
+        for axis, r in cal["residual"].items():
+            s, f = cal["residual_start"][axis], fitted[axis]
+            out.append(f"| {axis} | {r['max_db']:.2f} | {r['max_deg']:.1f} | {f['max_db']:.2f} dB, {f['max_deg']:.1f} deg "
+                       f"| {s['max_db']:.2f} dB, {s['max_deg']:.1f} deg |")
+        notes = list(cal["at_bounds"]) + list((flight or {}).get("notes", []))
+        out += [""] + [f"- {x}" for x in notes] + ([""] if notes else [])
     if "skipped" not in tune:
         out += ["### Tuning goals (value <= 1 meets a goal)", ""]
         for axis, r in tune["results"].items():
