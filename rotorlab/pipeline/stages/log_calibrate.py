@@ -370,11 +370,12 @@ def run(ctx: StageContext) -> dict:
     frequency_fit = {"inertia_kgm2": cal.inertia_kgm2, "lag_s": cal.lag_s, "delay_s": cal.delay_s,
                      "residual": {a: {"max_db": r.max_db, "max_deg": r.max_deg} for a, r in cal.residual.items()}}
     if refined is not None and refined.vehicle != cal.vehicle:
-        v_ref = refined.vehicle
+        v_ref, at_bounds = refined.vehicle, cal.at_bounds
         if "yaw" in targets:  # yaw's inertia and rotor terms again, with the refined motors held
-            v_ref = calibrate_axes(v_ref, {"yaw": targets["yaw"]}, fit_motors=False).vehicle
+            yaw = calibrate_axes(v_ref, {"yaw": targets["yaw"]}, fit_motors=False)
+            v_ref, at_bounds = yaw.vehicle, tuple(dict.fromkeys(at_bounds + yaw.at_bounds))
         cal = dataclasses.replace(
-            cal, vehicle=v_ref, inertia_kgm2=tuple(v_ref.inertia_kgm2), lag_s=tuple(v_ref.rotor.lag_s),
+            cal, vehicle=v_ref, at_bounds=at_bounds, inertia_kgm2=tuple(v_ref.inertia_kgm2), lag_s=tuple(v_ref.rotor.lag_s),
             delay_s=tuple(v_ref.rotor.delay_s), residual=axis_residuals(v_ref, targets),
             rotor_inertia_kgm2=v_ref.rotor.inertia_kgm2 if cal.rotor_inertia_kgm2 is not None else None,
             hforce_N_per_mps=v_ref.rotor.hforce_N_per_mps if cal.hforce_N_per_mps is not None else None)
