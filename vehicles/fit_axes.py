@@ -346,15 +346,12 @@ def calibrate_axes(vehicle: VehicleSpec, targets: dict, w_rad_s=W_FIT_RAD_S, sce
     inertia = _triangle(inertia)[0]
     delay = [round(d / PHYSICS_DT_S) * PHYSICS_DT_S for d in delay]
     fitted = _with(vehicle, inertia, lag, delay, rot)
-    after = twin_response(fitted, axes, w, scene=scene)
-    before = twin_response(vehicle, axes, w, scene=scene)
     return Calibration(
         vehicle=fitted, inertia_kgm2=tuple(fitted.inertia_kgm2), lag_s=tuple(fitted.rotor.lag_s),
         delay_s=tuple(fitted.rotor.delay_s),
         rotor_inertia_kgm2=fitted.rotor.inertia_kgm2 if yaw_rotor else None,
         hforce_N_per_mps=fitted.rotor.hforce_N_per_mps if yaw_rotor else None,
-        residual={a: _residual(a, w, after[a], goal[a]) for a in axes},
-        residual_start={a: _residual(a, w, before[a], goal[a]) for a in axes},
+        residual=axis_residuals(fitted, targets, w, scene), residual_start=axis_residuals(vehicle, targets, w, scene),
         cost_evaluations=int(sol.nfev), at_bounds=at_bounds)
 
 
@@ -376,9 +373,7 @@ def calibrate_axes_staged(vehicle: VehicleSpec, targets: dict, **kw) -> Calibrat
         return calibrate_axes(vehicle, targets, **kw)
     first = calibrate_axes(vehicle, tilt, **kw)
     cal = calibrate_axes(first.vehicle, targets, fit_motors=False, **kw)
-    w = np.asarray(kw.get("w_rad_s", W_FIT_RAD_S), dtype=float)
-    before = twin_response(vehicle, list(cal.residual), w, scene=kw.get("scene", "gimbal"))
-    start = {a: _residual(a, w, before[a], _target_response(targets[a], w)) for a in cal.residual}
+    start = axis_residuals(vehicle, targets, kw.get("w_rad_s", W_FIT_RAD_S), kw.get("scene", "gimbal"))
     return dataclasses.replace(cal, residual_start=start, cost_evaluations=first.cost_evaluations + cal.cost_evaluations,
                                at_bounds=tuple(dict.fromkeys(first.at_bounds + cal.at_bounds)))
 
