@@ -171,7 +171,9 @@ def _windows(spans, reason: str) -> list:
 
 def _fit_windows(spans, dt_s: float) -> list:
     """The first identification windows holding at most ``MAX_FIT_SAMPLES`` samples of period ``dt_s`` together
-    (the last one cut), the identification's own budget for a fit: a long log costs no more than a short one."""
+    (the last one cut), the identification's own budget for a fit: a long log costs no more than a short one. The
+    time-span form of :func:`rotorlab.ident.flightlogs.identify._capped`, which caps index runs: the twin's
+    prediction takes windows (:func:`twin_prediction`)."""
     out, left_s = [], MAX_FIT_SAMPLES * dt_s
     for a, b in spans:
         if left_s < MIN_SAMPLES * dt_s:
@@ -363,9 +365,10 @@ def run(ctx: StageContext) -> dict:
     cal = calibrate_axes_staged(v0, targets)
     log = read_flight_log(ctx.opts.log)
     pairs = {axis: _pair(ident["axes"][axis]) for axis in targets}
+    flight_loops = {axis: flight_loop(log, axis, cl["dt_s"], angle) for axis, (cl, _, angle) in pairs.items()}
     # the tilt axes' shared motors compromised on the flight itself (refine_on_flight); yaw borrows the motors
-    loops = {axis: (flight_loop(log, axis, cl["dt_s"], angle), _fit_windows(cl["ident"], cl["dt_s"]))
-             for axis, (cl, _, angle) in pairs.items() if axis != "yaw"}
+    loops = {axis: (flight_loops[axis], _fit_windows(cl["ident"], cl["dt_s"]))
+             for axis, (cl, _, _) in pairs.items() if axis != "yaw"}
     refined = refine_on_flight(cal.vehicle, loops) if loops else None
     frequency_fit = {"inertia_kgm2": cal.inertia_kgm2, "lag_s": cal.lag_s, "delay_s": cal.delay_s,
                      "residual": {a: {"max_db": r.max_db, "max_deg": r.max_deg} for a, r in cal.residual.items()}}
@@ -384,11 +387,11 @@ def run(ctx: StageContext) -> dict:
     v = load_vehicle(str(out))
     prediction = {}
     for axis, (cl, ind, angle) in pairs.items():
-        twin_vaf = twin_holdout_vaf(log, v, axis, cl["dt_s"], cl["holdout"], angle)
+        twin_vaf = twin_prediction(flight_loops[axis], v, _windows(cl["holdout"], "held out"))[0]
         prediction[axis] = {"twin_vaf_pct": twin_vaf, "closed_loop_vaf_pct": cl["vaf_holdout_pct"],
                             "closed_loop_method": cl["method"], "input": "att_sp" if angle else "rate_sp",
                             "plant_indirect_vaf_pct": ind.get("vaf_holdout_pct")}
-    flight = None if refined is None else {
+    flight_fit = None if refined is None else {
         "ident_vaf_before_pct": refined.vaf_before, "ident_vaf_after_pct": refined.vaf_after,
         "evaluations": refined.evaluations, "notes": list(refined.notes), "frequency_fit": frequency_fit}
     return jsonable({
@@ -398,7 +401,7 @@ def run(ctx: StageContext) -> dict:
         "residual": {a: {"max_db": r.max_db, "max_deg": r.max_deg, "w_rad_s": r.w_rad_s, "error_db": r.error_db,
                          "error_deg": r.error_deg} for a, r in cal.residual.items()},
         "residual_start": {a: {"max_db": r.max_db, "max_deg": r.max_deg} for a, r in cal.residual_start.items()},
-        "at_bounds": list(cal.at_bounds), "prescaled": prescaled, "prediction": prediction, "flight_fit": flight,
+        "at_bounds": list(cal.at_bounds), "prescaled": prescaled, "prediction": prediction, "flight_fit": flight_fit,
         "notes": notes})
 
 
